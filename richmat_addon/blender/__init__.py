@@ -1,0 +1,1 @@
+"""Everything that imports bpy: operators, panels, Cycles graph builder."""

@@ -1,0 +1,1 @@
+"""Host-independent core: material schema, graph, enhancement, exporters."""

@@ -1,0 +1,1 @@
+"""Torch evaluators of the enhanced BRDF: lobes, lookup tables and the layered model."""

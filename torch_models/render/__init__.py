@@ -1,0 +1,1 @@
+"""Torch preview renderer: environment lighting with MIS, AgX, FLIP."""
