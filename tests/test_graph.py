@@ -42,3 +42,14 @@ def _walk(node):
             yield from _walk(getattr(node, child))
     if isinstance(node, graph.Add):
         yield from node.terms
+
+
+def test_material_model_doc_lists_every_parameter_with_its_range():
+    """docs/material-model.md is the schema's documentation: keep them in step."""
+    from pathlib import Path
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "material-model.md").read_text()
+    rows = {line.split("|")[1].strip().strip("`"): line for line in doc.splitlines()
+            if line.startswith("| `")}
+    for p in schema.PARAMS:
+        assert p.name in rows, f"{p.name} missing from docs/material-model.md"
+        assert f"{p.lo:g}" in rows[p.name] and f"{p.hi:g}" in rows[p.name], p.name
