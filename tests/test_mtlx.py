@@ -7,7 +7,7 @@ from typing import Any
 import MaterialX as mx
 import numpy as np
 import pytest
-from test_osl import COATED, TYPE0, TYPE5, make_material, write_png
+from tests.test_osl import COATED, TYPE0, TYPE5, make_material, write_png
 
 from richmat_addon.core import graph, mtlx
 
