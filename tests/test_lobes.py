@@ -8,7 +8,7 @@ import pytest
 import torch
 from torch import Tensor
 
-from chi2 import chi2_test, sidak_threshold
+from tests.chi2 import chi2_test, sidak_threshold
 from torch_models.brdf import lobes, tables
 from torch_models.brdf.fresnel import (conductor_fss, dielectric_fss, f0_from_ior,
                                        fresnel_conductor, fresnel_dielectric)

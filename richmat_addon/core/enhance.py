@@ -1,0 +1,173 @@
+"""Procedural enhancement: simple PBR maps to the 22 parameter maps (paper sec. 3.2).
+
+numpy only, so the add-on can uplift inside a stock Blender. Per-material scalars
+are drawn from a generator seeded by (seed, material name), so the same input and
+seed always give the same material. Constant inputs give constant outputs: maps
+are plain numpy arrays of shape (C,) or (H, W, C) and every rule is elementwise.
+Ranges are documented (with which are ours) in docs/enhancement.md.
+"""
+from __future__ import annotations
+
+import hashlib
+import warnings
+
+import numpy as np
+
+from . import masks
+from .maps import EnhancedMaterial, ParamMap, PbrInputs
+from .schema import PARAM_BY_NAME, PARAMS
+
+TYPE_DESCRIPTIONS: dict[int, str] = {
+    0: "Haze: core + haze highlights on every material",
+    1: "Dust: haze plus dust on upward-facing surfaces",
+    2: "Clearcoat: haze plus a glossy coat, sometimes damaged",
+    3: "Dust + clearcoat",
+    4: "Fuzz + inner and subcutaneous scattering (dielectrics only)",
+    5: "Fuzz + clearcoat + inner and subcutaneous scattering (dielectrics only)",
+}
+TYPE_MIX: tuple[float, ...] = (0.1, 0.2, 0.2, 0.2, 0.1, 0.2)  # the paper's dataset mix
+DIELECTRIC_ONLY = (4, 5)
+# What a dielectric-only type becomes on a metal: drop the scattering, keep the rest.
+METAL_REMAP = {4: 1, 5: 3}
+DUST_MASK_FLOOR = 0.35  # dust weight between mask features, as a share of the peak
+METALLIC_THRESHOLD = 0.5  # mean metalness above which a material counts as a metal
+
+
+def is_metallic(pbr: PbrInputs) -> bool:
+    return float(np.nan_to_num(pbr.metalness.mean()[0])) > METALLIC_THRESHOLD
+
+
+def _rng(seed: int, name: str, purpose: str) -> np.random.Generator:
+    digest = hashlib.sha256(f"{name}\0{purpose}".encode()).digest()
+    return np.random.default_rng([seed, int.from_bytes(digest[:8], "little")])
+
+
+def resolve_type(pbr: PbrInputs, requested: int | str, seed: int) -> tuple[int, str]:
+    """The type to apply and a note; 'auto' draws from the paper's mix.
+
+    A dielectric-only type requested on a metal comes back remapped (4 -> 1,
+    5 -> 3) with a note saying so; callers that must refuse compare the result
+    with what they asked for.
+    """
+    metal = is_metallic(pbr)
+    if requested == "auto":
+        probs = np.array(TYPE_MIX)
+        if metal:
+            probs[list(DIELECTRIC_ONLY)] = 0.0
+        type_ = int(_rng(seed, pbr.name, "type").choice(6, p=probs / probs.sum()))
+        return type_, f"auto: type {type_}" + (" (metal: types 4-5 excluded)" if metal else "")
+    type_ = int(requested)
+    if type_ not in TYPE_DESCRIPTIONS:
+        raise ValueError(f"unknown enhancement type {requested!r}; use 0-5 or 'auto'")
+    if metal and type_ in DIELECTRIC_ONLY:
+        return METAL_REMAP[type_], (f"type {type_} is for dielectrics and {pbr.name!r} is metallic "
+                                    f"(mean metalness > {METALLIC_THRESHOLD}); used type "
+                                    f"{METAL_REMAP[type_]} instead")
+    return type_, ""
+
+
+def _clean(m: ParamMap, lo: float, hi: float, what: str, material: str) -> np.ndarray:
+    """Replace NaN/inf and clamp out-of-range texels, warning with a count."""
+    v = m.value
+    bad = ~np.isfinite(v)
+    out = (v < lo) | (v > hi)
+    if bad.any() or out.any():
+        warnings.warn(f"{material}: {what}: {int(bad.sum())} non-finite and {int(out.sum())} "
+                      f"out-of-range values replaced/clamped to [{lo}, {hi}]", stacklevel=3)
+    return np.clip(np.nan_to_num(v, nan=(lo + hi) / 2, posinf=hi, neginf=lo), lo, hi)
+
+
+def _fit(name: str, value: np.ndarray | float) -> ParamMap:
+    p = PARAM_BY_NAME[name]
+    v = np.clip(np.asarray(value, np.float32), p.lo, p.hi)
+    if v.ndim == 0:
+        v = v.reshape(1)
+    if p.channels == 1 and v.ndim == 2:
+        v = v[..., None]
+    return ParamMap(v)
+
+
+def _mask_size(pbr: PbrInputs, normals: ParamMap | None) -> int | None:
+    """Mask resolution: the largest input texture; None when nothing gives a texture space."""
+    sizes = [max(m.shape) for m in (pbr.base_color, pbr.roughness, pbr.metalness, normals)
+             if m is not None and m.shape]
+    return max(sizes) if sizes else None
+
+
+def _dust_weight(pbr: PbrInputs, rng: np.random.Generator, peak: float,
+                 normals: ParamMap | None, positions: ParamMap | None,
+                 settings: dict) -> np.ndarray:
+    """Upward-facing factor times a triplanar mask; UV-space mask without geometry."""
+    kind = str(rng.choice(sorted(masks.DUST_MASKS)))
+    size = _mask_size(pbr, normals)
+    if size is None:  # factor-only material without world maps: no texture to put a mask in
+        settings["dust_mask"] = "none: no texture space"
+        return np.float32(peak * DUST_MASK_FLOOR)
+    # Dust still settles between the features: the mask modulates, never zeroes.
+    mask = DUST_MASK_FLOOR + (1.0 - DUST_MASK_FLOOR) * masks.DUST_MASKS[kind](size, rng)
+    settings["dust_mask"] = kind
+    if normals is None or positions is None or normals.is_constant:
+        settings["dust_geometry"] = "none: mask in UV space, surface assumed facing up"
+        return peak * mask[..., None]
+    n = normals.value / np.maximum(np.linalg.norm(normals.value, axis=-1, keepdims=True), 1e-12)
+    up = np.clip(n[..., 2:3] / 0.7, 0.0, 1.0) ** 2
+    tri = masks.triplanar(mask, positions.value, n, scale=rng.uniform(1.0, 3.0))[..., None]
+    settings["dust_geometry"] = "world normals and positions"
+    return peak * up * tri
+
+
+def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
+            world_normals: ParamMap | None = None,
+            world_positions: ParamMap | None = None) -> EnhancedMaterial:
+    """Enhance one material. Types 4/5 on a metal raise ValueError (see resolve_type)."""
+    resolved, note = resolve_type(pbr, type_, seed)
+    if type_ != "auto" and resolved != int(type_):
+        raise ValueError(f"{pbr.name}: {note}. Choose a type in 0-3 for metals.")
+    rng = _rng(seed, pbr.name, "params")
+    base = _clean(pbr.base_color, 0.0, 1.0, "base colour", pbr.name)
+    rough = _clean(pbr.roughness, 0.0, 1.0, "roughness", pbr.name)
+    metal = _clean(pbr.metalness, 0.0, 1.0, "metalness", pbr.name)
+
+    s = {"type": resolved, "type_note": note, "seed": seed,
+         "p": rng.uniform(2.2, 3.5), "q": rng.uniform(1.2, 1.8), "s": rng.uniform(1.1, 1.6),
+         "haze_weight": rng.uniform(0.1, 0.4), "diel_ior": rng.uniform(1.4, 1.7),
+         "edge_tint": rng.uniform(0.85, 1.0)}
+    lum = base @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    values: dict[str, np.ndarray | float] = {
+        "spec_color": base, "edge_tint": s["edge_tint"], "metalness": metal,
+        "alpha_core": rough ** s["p"], "alpha_haze": np.minimum(1.0, s["s"] * rough ** s["q"]),
+        "haze_weight": s["haze_weight"], "diel_ior": s["diel_ior"],
+    }
+    if metal.ndim == 1 and metal[0] == 0.0:
+        del values["spec_color"]  # no conductor anywhere: keep the constant default
+    lobes = {0: (), 1: ("dust",), 2: ("coat",), 3: ("dust", "coat"),
+             4: ("fuzz", "scatter"), 5: ("fuzz", "coat", "scatter")}[resolved]
+    if "dust" in lobes:
+        s.update(dust_peak=rng.uniform(0.3, 0.9), dust_roughness=rng.uniform(0.3, 0.8))
+        values["dust_weight"] = _dust_weight(pbr, rng, s["dust_peak"], world_normals,
+                                             world_positions, s)
+        values["dust_roughness"] = s["dust_roughness"]
+    if "fuzz" in lobes:
+        s.update(fuzz_weight=rng.uniform(0.2, 0.7), fuzz_roughness=rng.uniform(0.3, 0.8))
+        values["dust_weight"], values["dust_roughness"] = s["fuzz_weight"], s["fuzz_roughness"]
+    if "coat" in lobes:
+        s.update(coat_ior=rng.uniform(1.45, 1.6), coat_alpha=rng.uniform(0.0025, 0.02),
+                 coat_damage=str(rng.choice(["none"] + sorted(masks.DAMAGE_MASKS))))
+        damage_size = _mask_size(pbr, world_normals)
+        if damage_size is None:
+            s["coat_damage"] = "none"
+        values["coat_ior"], values["coat_alpha"] = s["coat_ior"], s["coat_alpha"]
+        values["coat_weight"] = 1.0 if s["coat_damage"] == "none" else \
+            1.0 - masks.DAMAGE_MASKS[s["coat_damage"]](damage_size, rng)
+    if "scatter" in lobes:
+        s.update(inner_weight=rng.uniform(0.2, 0.6), inner_roughness=rng.uniform(0.3, 0.7),
+                 subsurf_alpha=rng.uniform(0.5, 0.9), subsurf_ior=rng.uniform(1.3, 1.5))
+        # Gentle desaturation: 30 % toward grey, then lifted a little toward white.
+        values["scatter_color"] = 0.85 * (0.7 * base + 0.3 * lum[..., None]) + 0.15
+        values.update(inner_weight=s["inner_weight"], inner_roughness=s["inner_roughness"],
+                      subsurf_weight=1.0, subsurf_alpha=s["subsurf_alpha"],
+                      subsurf_ior=s["subsurf_ior"])
+
+    params = {p.name: _fit(p.name, values.get(p.name, p.default)) for p in PARAMS}
+    settings = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in s.items()}
+    return EnhancedMaterial(pbr.name, resolved, seed, ParamMap(base), params, settings)

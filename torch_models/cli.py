@@ -1,0 +1,72 @@
+"""``python -m torch_models <command>``: one argparse front end, one small module per command.
+
+A command module (listed in ``COMMANDS``) provides ``HELP`` (one line), a module
+docstring (the long description), ``add_arguments(parser)`` and ``run(args) -> int``.
+Command modules keep heavy imports (torch, OpenImageIO) inside ``run`` so that
+``--help`` and the other commands stay fast.
+
+Exit codes: 0 success, 2 bad input (one line on stderr naming the file and the
+problem, no traceback), anything else is a bug and keeps its traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+import uuid
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterator, Sequence
+
+from richmat_addon.core.gltf_materials import GltfError
+
+PROG = "python -m torch_models"
+
+COMMANDS: dict[str, str] = {
+    "enhance": "torch_models.cli_enhance",
+}
+
+
+class InputError(ValueError):
+    """Bad input that the user can fix; reported in one line with exit code 2."""
+
+
+BAD_INPUT: tuple[type[Exception], ...] = (InputError, GltfError)
+
+
+@contextmanager
+def atomic_path(path: Path) -> Iterator[Path]:
+    """A temporary path beside ``path`` that replaces it only if the block succeeds.
+
+    The temporary name keeps the suffix, so writers that pick a format from the
+    extension (OpenImageIO) still work, and the writer creates the file, so it gets
+    the usual permissions. Readers never see a half-written file.
+    """
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}-{uuid.uuid4().hex[:8]}.tmp{path.suffix}")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, module_name in COMMANDS.items():
+        module = importlib.import_module(module_name)
+        cmd = sub.add_parser(name, help=module.HELP, description=module.__doc__,
+                             formatter_class=argparse.RawDescriptionHelpFormatter)
+        module.add_arguments(cmd)
+        cmd.set_defaults(run=module.run)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.run(args))
+    except BAD_INPUT as exc:
+        print(f"{PROG} {args.command}: error: {exc}", file=sys.stderr)
+        return 2
