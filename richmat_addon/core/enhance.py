@@ -171,3 +171,18 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
     params = {p.name: _fit(p.name, values.get(p.name, p.default)) for p in PARAMS}
     settings = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in s.items()}
     return EnhancedMaterial(pbr.name, resolved, seed, ParamMap(base), params, settings)
+
+
+def baseline(pbr: PbrInputs) -> EnhancedMaterial:
+    """The original PBR material expressed in the enhanced model, for comparisons.
+
+    One GGX lobe with alpha = r^2 (haze weight 0), Gulbrandsen colour from the
+    base colour where metallic, an IOR of 1.5 (F0 = 0.04) where not, no decorators.
+    """
+    rough = _clean(pbr.roughness, 0.0, 1.0, "roughness", pbr.name)
+    values = {"spec_color": _clean(pbr.base_color, 0.0, 1.0, "base colour", pbr.name),
+              "metalness": _clean(pbr.metalness, 0.0, 1.0, "metalness", pbr.name),
+              "alpha_core": rough ** 2, "haze_weight": 0.0, "diel_ior": 1.5, "edge_tint": 1.0}
+    params = {p.name: _fit(p.name, values.get(p.name, p.default)) for p in PARAMS}
+    return EnhancedMaterial(pbr.name, -1, 0, ParamMap(values["spec_color"]), params,
+                            {"type": "pbr baseline"})
