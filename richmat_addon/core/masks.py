@@ -60,8 +60,8 @@ def fingerprints(size: int, rng: Rng, count: int = 6) -> np.ndarray:
 
 def wipes(size: int, rng: Rng) -> np.ndarray:
     """Smeared streaks: strongly anisotropic noise, soft-thresholded."""
-    n = periodic_noise(size, 0.08, rng, aniso=8.0, angle=rng.uniform(0, np.pi))
-    return np.clip((n - 0.35) / 0.3, 0.0, 1.0).astype(np.float32)
+    n = periodic_noise(size, 0.025, rng, aniso=6.0, angle=rng.uniform(0, np.pi))
+    return np.clip((n - 0.45) / 0.25, 0.0, 1.0).astype(np.float32)
 
 
 def ripples(size: int, rng: Rng, count: int = 3) -> np.ndarray:
