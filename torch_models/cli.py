@@ -25,6 +25,7 @@ PROG = "python -m torch_models"
 
 COMMANDS: dict[str, str] = {
     "enhance": "torch_models.cli_enhance",
+    "demo": "torch_models.cli_demo",
 }
 
 

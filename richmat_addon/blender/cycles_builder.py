@@ -107,14 +107,16 @@ def _set_constant(socket: bpy.types.NodeSocket, value: ParamMap) -> None:
 
 
 def build_material(mat: EnhancedMaterial, texture_paths: dict[str, str],
-                   name: str | None = None) -> bpy.types.Material:
+                   name: str | None = None, node: graph.Node = graph.SURFACE) -> bpy.types.Material:
     """A Cycles material whose surface is the OSL shader of ``mat``'s pruned graph.
 
     ``texture_paths`` maps parameter names (and ``"base_color"``) to image files;
-    it must hold every parameter that is a texture in ``mat``.
+    it must hold every parameter that is a texture in ``mat``. ``node`` renders a
+    part of the graph instead (one lobe alone, for agreement tests).
     """
-    pruned = graph.prune(graph.SURFACE, mat.constants())
-    assert pruned is not None  # the diffuse base always survives
+    pruned = graph.prune(node, mat.constants())
+    if pruned is None:
+        raise ValueError(f"{mat.name}: nothing of the graph is left after pruning its constants")
     inputs = osl.shader_inputs(pruned)
     textured = [i.name for i in inputs if i.name != "Normal" and not _map_of(mat, i.name).is_constant]
     missing = [n for n in textured if n not in texture_paths]

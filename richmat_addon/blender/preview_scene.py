@@ -1,0 +1,97 @@
+"""The preview-ball scene in Cycles, built from ``core.preview.PreviewScene``.
+
+The ball is a single point of a point cloud (Cycles renders points as exact
+spheres), so its silhouette and normals are those of the torch renderer's
+analytic sphere, not of a tessellated mesh. The probe lights the scene through
+an Environment Texture (bilinear, equirectangular); the film is transparent, so
+the RGB of the saved EXR is the ball over black.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import bpy
+
+from ..core.preview import PreviewScene
+
+BALL = "richmat_preview_ball"
+
+
+def _ball_object(radius: float, material: bpy.types.Material | None) -> bpy.types.Object:
+    """An object whose geometry nodes make one point of ``radius`` at the origin."""
+    tree = bpy.data.node_groups.new(BALL, "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    points = tree.nodes.new("GeometryNodePoints")
+    points.inputs["Count"].default_value = 1
+    points.inputs["Radius"].default_value = radius
+    set_material = tree.nodes.new("GeometryNodeSetMaterial")
+    set_material.inputs["Material"].default_value = material
+    out = tree.nodes.new("NodeGroupOutput")
+    tree.links.new(points.outputs["Points"], set_material.inputs["Geometry"])
+    tree.links.new(set_material.outputs["Geometry"], out.inputs["Geometry"])
+    obj = bpy.data.objects.new(BALL, bpy.data.meshes.new(BALL))
+    obj.modifiers.new("ball", "NODES").node_group = tree
+    return obj
+
+
+def _world(probe: Path, rotation_deg: float) -> bpy.types.World:
+    world = bpy.data.worlds.new("richmat_probe")
+    tree = world.node_tree
+    tree.nodes.clear()
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    mapping = tree.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(rotation_deg))
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(str(probe), check_existing=True)
+    env.interpolation = "Linear"
+    env.projection = "EQUIRECTANGULAR"
+    background = tree.nodes.new("ShaderNodeBackground")
+    out = tree.nodes.new("ShaderNodeOutputWorld")
+    tree.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+    tree.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+    tree.links.new(env.outputs["Color"], background.inputs["Color"])
+    tree.links.new(background.outputs["Background"], out.inputs["Surface"])
+    return world
+
+
+def setup(scene: bpy.types.Scene, preview: PreviewScene, probe: Path,
+          material: bpy.types.Material | None, samples: int, seed: int = 0,
+          with_ball: bool = True) -> None:
+    """Make ``scene`` the preview scene: camera, ball, probe and converged Cycles settings."""
+    cam_data = bpy.data.cameras.new("richmat_preview_camera")
+    cam_data.sensor_fit = "AUTO"
+    cam_data.angle = math.radians(preview.fov_deg)
+    cam = bpy.data.objects.new("richmat_preview_camera", cam_data)
+    cam.location = (0.0, -preview.distance, 0.0)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    if with_ball:
+        scene.collection.objects.link(_ball_object(preview.radius, material))
+    scene.world = _world(probe, preview.probe_rotation_deg)
+
+    scene.render.engine = "CYCLES"
+    scene.render.resolution_x = scene.render.resolution_y = preview.resolution
+    scene.render.resolution_percentage = 100
+    scene.render.film_transparent = with_ball
+    scene.view_settings.view_transform = "AgX"
+    cycles = scene.cycles
+    cycles.device = "CPU"
+    cycles.samples = samples
+    cycles.use_adaptive_sampling = False
+    cycles.use_denoising = False
+    cycles.seed = seed
+    # Nothing may bias the estimate: no clamping, no glossy blur.
+    cycles.sample_clamp_direct = 0.0
+    cycles.sample_clamp_indirect = 0.0
+    cycles.blur_glossy = 0.0
+
+
+def render_exr(scene: bpy.types.Scene, path: Path) -> None:
+    """Render the scene and save scene-linear RGBA as a float EXR."""
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    scene.render.image_settings.color_mode = "RGBA"
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
