@@ -60,6 +60,17 @@ class LayeredBsdf:
         # iter_lobes visits tops before bases and fg before bg, the order terms() uses.
         self.lobes = list(g.iter_lobes(self.node))
         self._nk: tuple[Tensor, Tensor] | None = None
+        # View-dependent weights of the last view-direction tensor: a renderer calls
+        # eval, pdf and sample with one ``wi`` and should pay for the layering once.
+        self._memo: dict[str, tuple[Tensor, object]] = {}
+
+    def _per_view(self, key: str, wi: Tensor, compute):  # type: ignore[no-untyped-def]
+        hit = self._memo.get(key)
+        if hit is not None and hit[0] is wi:
+            return hit[1]
+        value = compute()
+        self._memo[key] = (wi, value)
+        return value
 
     # ---- inputs -------------------------------------------------------------
     def value(self, v: g.Value) -> Tensor:
@@ -115,6 +126,9 @@ class LayeredBsdf:
     # ---- view-dependent weights --------------------------------------------------
     def terms(self, wi: Tensor) -> tuple[list[_Term], Tensor]:
         """Every lobe's coefficient at ``wi`` and the diffuse weight T(wi) (N, 1)."""
+        return self._per_view("terms", wi, lambda: self._terms(wi))
+
+    def _terms(self, wi: Tensor) -> tuple[list[_Term], Tensor]:
         cos_i = wi[..., 2:3].clamp(min=0.0)
         out: list[_Term] = []
         diffuse = torch.zeros_like(cos_i)
@@ -150,10 +164,12 @@ class LayeredBsdf:
 
     def lobe_albedos(self, wi: Tensor) -> tuple[list[Tensor], Tensor]:
         """Per lobe, its weighted directional albedo at wi (N, 3); and T * base colour."""
-        cos_i = wi[..., 2:3].clamp(min=0.0)
-        terms, diffuse = self.terms(wi)
-        per_lobe = [t.coeff * self._lobe_albedo(t.lobe, cos_i) * _ones3(cos_i) for t in terms]
-        return per_lobe, diffuse * self.base_color
+        def compute() -> tuple[list[Tensor], Tensor]:
+            cos_i = wi[..., 2:3].clamp(min=0.0)
+            terms, diffuse = self.terms(wi)
+            per_lobe = [t.coeff * self._lobe_albedo(t.lobe, cos_i) * _ones3(cos_i) for t in terms]
+            return per_lobe, diffuse * self.base_color
+        return self._per_view("albedos", wi, compute)
 
     def reflectance(self, wi: Tensor) -> Tensor:
         """R(wi): luminance of the non-diffuse part's directional albedo, (N, 1)."""
