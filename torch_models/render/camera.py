@@ -43,18 +43,20 @@ def filter_offsets(u: Tensor, width: float = FILTER_WIDTH) -> Tensor:
     return (x[idx - 1] + t * (x[idx] - x[idx - 1])).float()
 
 
-def primary_rays(scene: PreviewScene, u: Tensor) -> tuple[Tensor, Tensor]:
-    """Origins and unit directions (H*W, 3) for one sample per pixel, rows top to bottom.
+def primary_rays(scene: PreviewScene, u: Tensor, pixels: Tensor | None = None) -> tuple[Tensor, Tensor]:
+    """Origins and unit directions (N, 3) of camera rays through ``pixels``.
 
-    ``u`` is (H*W, 2) in [0,1): the filter offsets. The camera sits at
-    (0, -distance, 0) looking along +y with +z up; the field of view spans the
-    (square) image's width, as Blender's sensor fit Auto does.
+    ``pixels`` are flat indices (row-major, rows top to bottom), all H*W pixels
+    once when omitted; ``u`` is (N, 2) in [0,1): the filter offsets. The camera
+    sits at (0, -distance, 0) looking along +y with +z up; the field of view
+    spans the (square) image's width, as Blender's sensor fit Auto does.
     """
     n = scene.resolution
-    rows, cols = torch.meshgrid(torch.arange(n), torch.arange(n), indexing="ij")
+    if pixels is None:
+        pixels = torch.arange(n * n)
     offset = filter_offsets(u)
-    px = cols.reshape(-1) + 0.5 + offset[:, 0]
-    py = rows.reshape(-1) + 0.5 + offset[:, 1]
+    px = (pixels % n) + 0.5 + offset[:, 0]
+    py = torch.div(pixels, n, rounding_mode="floor") + 0.5 + offset[:, 1]
     half = math.tan(0.5 * math.radians(scene.fov_deg))
     x = (2.0 * px / n - 1.0) * half
     z = (1.0 - 2.0 * py / n) * half
