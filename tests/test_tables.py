@@ -6,6 +6,7 @@ import time
 from typing import Iterator
 
 import pytest
+import numpy as np
 import torch
 
 from torch_models.brdf import ggx, tables
@@ -113,17 +114,19 @@ def test_sheen_table_against_published_cycles_values() -> None:
         assert abs(got - value) < 0.02, (r_node, mu_node, got, value)
 
 
-def test_sheen_table_nodes_are_the_hill_fit() -> None:
+def test_sheen_table_is_the_calibrated_file_read_bilinearly() -> None:
+    """The shipped table (bench/calibrate_sheen.py) is read at nodes exactly, and it stays
+    within the documented distance of Hill's fits where it was measured (mu >= 0.2) and
+    sheen is visible (R > 0.01)."""
     t = tables.table("sheen_ltc", torch.device("cpu"), F64)
-    mu = torch.tensor(0.3, dtype=F64)
-    r = torch.tensor(0.6, dtype=F64)
-    a, b, albedo = tables.hill_sheen_fit(mu, r)
+    assert torch.equal(t, torch.from_numpy(np.load(tables.SHEEN_TABLE_FILE)).to(F64))
     node = tables.sheen_ltc(torch.tensor(9 / 31, dtype=F64), torch.tensor(19 / 31, dtype=F64))
     assert torch.allclose(torch.stack(node), t[:, 19, 9])
-    # Between nodes the bilinear read stays close to the smooth fit.
-    read = tables.sheen_ltc(mu, r)
-    assert abs(float(read[2] - albedo)) < 5e-3
-    assert abs(float(read[0] - a)) < 0.02 and abs(float(read[1] - b)) < 0.02
+    hill = tables.hill_sheen_ltc()
+    visible = hill[2] > 0.01
+    visible[:, :7] = False  # mu < 0.2: not measured, kept near the fits only by a weak prior
+    assert (t[2] - hill[2]).abs()[visible].max() < 0.03  # R: Hill agrees with Cycles' published R
+    assert (t[0] - hill[0]).abs()[visible].max() < 0.1  # A: Cycles' table differs from Hill's by ~0.07
 
 
 def test_fresnel_moments_reproduce_e() -> None:

@@ -22,8 +22,10 @@ Tables:
   the clamped interpolation factor (F(h.wi) - F0) / (1 - F0) of the exact dielectric
   Fresnel; samples mirrored below the surface count as 0 (Cycles' pdf == 0 case).
 - ``sheen_ltc`` [A, B, R][roughness 32][mu 32]: Zeltner sheen LTC coefficients and
-  albedo, from Stephen Hill's closed-form fits as MaterialX ships them (Cycles'
-  own table is a different fit of the same data, see docs/lobes.md).
+  albedo, measured from Cycles: bench/calibrate_sheen.py starts from Stephen
+  Hill's closed-form fits (as MaterialX ships them) and fits the table to
+  Cycles renders of the closure; the result ships as ``data/sheen_ltc.npy``
+  (Cycles' own table is a different fit than Hill's, see docs/lobes.md).
 - ``ggx_fresnel_moments`` [16][mu 32][rough 32] (ours, not Cycles'): the
   single-scatter albedo with Fresnel replaced by each of 16 hat functions of
   c = h.wi, so any Fresnel's albedo is a linear combination of its node values.
@@ -33,6 +35,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -243,11 +246,20 @@ def hill_sheen_fit(mu: Tensor, roughness: Tensor) -> tuple[Tensor, Tensor, Tenso
     return a, b, r
 
 
-def generate_sheen_ltc() -> Tensor:
-    """[A, B, R][roughness][mu] sampled from the Hill fits at the grid nodes."""
+def hill_sheen_ltc() -> Tensor:
+    """[A, B, R][roughness][mu] sampled from the Hill fits at the grid nodes: the
+    starting point of bench/calibrate_sheen.py."""
     grid = torch.arange(SHEEN_SIZE, dtype=_F64) / (SHEEN_SIZE - 1)
     rough, mu = torch.meshgrid(grid, grid, indexing="ij")
     return torch.stack(hill_sheen_fit(mu, rough))
+
+
+SHEEN_TABLE_FILE = Path(__file__).with_name("data") / "sheen_ltc.npy"
+
+
+def calibrated_sheen_ltc() -> Tensor:
+    """[A, B, R][roughness][mu] fitted to Cycles' sheen by bench/calibrate_sheen.py."""
+    return torch.from_numpy(np.load(SHEEN_TABLE_FILE)).to(_F64)
 
 
 _GENERATORS = {
@@ -255,7 +267,7 @@ _GENERATORS = {
     "ggx_Eavg": generate_ggx_eavg,
     "ggx_gen_schlick_ior_s": generate_gen_schlick_ior_s,
     "ggx_fresnel_moments": generate_ggx_fresnel_moments,
-    "sheen_ltc": generate_sheen_ltc,
+    "sheen_ltc": calibrated_sheen_ltc,
 }
 
 
