@@ -13,7 +13,7 @@ import torch
 from richmat_addon.core.preview import PreviewScene
 from richmat_addon.core.schema import default_vector
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
-from torch_models.render.ball import render_ball
+from torch_models.render.ball import render_ball, shade_gbuffer
 from torch_models.render.camera import filter_offsets, primary_rays
 from torch_models.render.envmap import EnvMap, read_probe
 from torch_models.render.flip import mean_flip
@@ -188,3 +188,19 @@ def test_ball_agrees_with_cycles(blender_run, tmp_path: Path, env: EnvMap) -> No
     cycles = _read_exr(tmp_path / "ball.exr")
     assert math.isclose(float(cycles.mean()), float(ours.rgb.mean()), rel_tol=0.03)
     assert mean_flip(agx(cycles), agx(ours.rgb)) < 0.06
+
+
+def test_gbuffer_shading_matches_the_ball(env: EnvMap) -> None:
+    """The ball's own G-buffer (pixel-centre normals and view directions) shades like the ball."""
+    scene = PreviewScene(resolution=32)
+    origin, d = primary_rays(scene, torch.full((32 * 32, 2), 0.5))  # offset 0: pixel centres
+    from torch_models.render.camera import hit_sphere
+    hit, p = hit_sphere(origin, d, 1.0)
+    normals = (p / p.norm(dim=-1, keepdim=True)).reshape(32, 32, 3).numpy()
+    views = (-d).reshape(32, 32, 3).numpy()
+    bsdf = _plain_bsdf()
+    shaded = shade_gbuffer(lambda n: bsdf, env, normals, views, hit.reshape(32, 32).numpy(), 256, 0)
+    ball = render_ball(lambda n: bsdf, env, scene, 256, 0)
+    inner = ball.alpha == 1.0
+    assert (shaded[~hit.reshape(32, 32).numpy()] == 0).all()
+    assert np.isclose(shaded[inner].mean(), ball.rgb[inner].mean(), rtol=0.03)

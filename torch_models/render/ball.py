@@ -1,4 +1,4 @@
-"""Path-traced preview ball under an environment probe, with MIS.
+"""Path-traced preview ball (or any G-buffer) under an environment probe, with MIS.
 
 The ball is convex and alone, so every path ends after one bounce: a direction
 below a point's horizon would hit the ball itself and is already zero in the
@@ -122,3 +122,29 @@ def render_ball(bsdf_at: BsdfAt, env: EnvMap, scene: PreviewScene = PreviewScene
     shape = (scene.resolution, scene.resolution)
     rgb = (total / spp).reshape(*shape, 3).numpy()
     return RenderResult(rgb, (coverage / spp).reshape(shape).numpy(), time.perf_counter() - start)
+
+
+def shade_gbuffer(bsdf_at: BsdfAt, env: EnvMap, normals: np.ndarray, views: np.ndarray,
+                  mask: np.ndarray, spp: int = 64, seed: int = 0) -> np.ndarray:
+    """Probe lighting of a G-buffer: per covered pixel, its world normal and the unit
+    direction towards the camera, (H, W, 3) each; returns scene-linear RGB (H, W, 3).
+
+    A G-buffer carries no geometry beyond the pixel, so nothing is shadowed: exact
+    for a convex object (the ball), an approximation for anything else.
+    """
+    rows = torch.from_numpy(np.flatnonzero(mask))
+    n = torch.from_numpy(normals.reshape(-1, 3)[rows.numpy()]).float()
+    view = torch.from_numpy(views.reshape(-1, 3)[rows.numpy()]).float()
+    t, b = shading_basis(n)
+    wi = torch.stack([(view * t).sum(-1), (view * b).sum(-1), (view * n).sum(-1)], -1)
+    bsdf = bsdf_at(n)
+    points = torch.quasirandom.SobolEngine(7, scramble=True, seed=seed).draw(spp)
+    shift = torch.rand(len(rows), 7, generator=torch.Generator().manual_seed(seed))
+    total = torch.zeros(len(rows), 3)
+    with torch.no_grad():
+        for s in range(spp):
+            u = (points[s] + shift) % 1.0
+            total += direct_light(bsdf, env, wi, (t, b, n), u[:, :4], u[:, 4:7])
+    out = np.zeros((mask.size, 3), np.float32)
+    out[rows.numpy()] = (total / spp).numpy()
+    return out.reshape(*mask.shape, 3)
