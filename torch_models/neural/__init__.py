@@ -1,0 +1,1 @@
+"""Universal neural material (paper sec. 4): networks, training data, training, fitting."""
