@@ -26,6 +26,7 @@ PROG = "python -m torch_models"
 COMMANDS: dict[str, str] = {
     "enhance": "torch_models.cli_enhance",
     "demo": "torch_models.cli_demo",
+    "train-decoder": "torch_models.cli_train_decoder",
 }
 
 

@@ -1,0 +1,52 @@
+"""Training data and the training loop on tiny settings."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+from safetensors.torch import load_file
+
+from richmat_addon.core.schema import CHANNEL_SLICES, bounds
+from torch_models.cli import main
+from torch_models.neural.data import make_batch, parameter_vectors
+
+TINY = {"seed": 0, "pool": 120, "buffer_batches": 2, "refresh_every": 2, "batch": 1024, "steps": 60,
+        "sampler_steps": 10, "checkpoint_every": 20, "lr": 0.003, "threads": 1}
+
+
+def test_parameter_vectors_follow_the_rules_and_bounds() -> None:
+    v = parameter_vectors(200, np.random.default_rng(0))
+    lo, hi = np.array(bounds()[0]), np.array(bounds()[1])
+    assert v.shape == (200, 22) and ((v >= lo - 1e-6) & (v <= hi + 1e-6)).all()
+    dust = v[:, CHANNEL_SLICES["dust_weight"]].ravel()
+    inner = v[:, CHANNEL_SLICES["inner_weight"]].ravel()
+    assert 0.2 < (dust > 0).mean() < 0.8 and 0.1 < (inner > 0).mean() < 0.6  # themed, not all uniform
+    assert np.array_equal(v, parameter_vectors(200, np.random.default_rng(0)))  # seeded
+
+
+def test_batches_are_finite_and_see_the_highlights() -> None:
+    pool = torch.from_numpy(parameter_vectors(50, np.random.default_rng(1)))
+    b = make_batch(pool, 4096, torch.Generator().manual_seed(0))
+    assert torch.isfinite(b.f).all() and (b.f >= 0).all()
+    assert ((b.t >= 0) & (b.t <= 1)).all() and ((b.r >= 0) & (b.r <= 1.0001)).all()
+    assert b.f.max() > 10  # importance-sampled wo reach narrow peaks
+
+
+def test_training_reduces_the_loss_and_resumes(tmp_path: Path) -> None:
+    cfg = tmp_path / "tiny.json"
+    cfg.write_text(json.dumps(TINY))
+    out = tmp_path / "run"
+    assert main(["train-decoder", "--config", str(cfg), "--out", str(out)]) == 0
+    history = json.loads((out / "state.json").read_text())["config"]["history"]
+    decoder = [h["loss"] for h in history if h["phase"] == "decoder"]
+    assert decoder[-1] < 0.8 * decoder[0]
+    assert (out / "training_curve.png").stat().st_size > 0
+    weights = load_file(str(out / "weights.safetensors"))
+    assert any(k.startswith("decoder.") for k in weights) and any(k.startswith("sampler.") for k in weights)
+    # A second start refuses to overwrite; --resume continues to a longer schedule.
+    assert main(["train-decoder", "--config", str(cfg), "--out", str(out)]) == 2
+    cfg.write_text(json.dumps(dict(TINY, steps=80)))
+    assert main(["train-decoder", "--config", str(cfg), "--out", str(out), "--resume"]) == 0
+    assert json.loads((out / "state.json").read_text())["step"] == 90

@@ -1,0 +1,93 @@
+"""Training data for the universal decoder, generated on the fly (paper sec. 4.2).
+
+Parameter vectors come from the enhancement rules themselves: ``enhance`` on
+constant PBR inputs with random base colour, roughness and metalness, in four
+themed classes (haze: Type 0; dust: Types 1 and 3; clearcoat: Types 2 and 3;
+inner/subcutaneous scattering: Types 4 and 5), with the per-texel variation the
+masks create (dust and coat weights between their floor and peak, partial
+metalness). 20 % of vectors are "infill": uniform within the schema's bounds.
+Directions: wi cosine-weighted with a share of grazing views; wo half uniform
+over the hemisphere, half importance-sampled from the analytic model so that
+narrow highlights are seen. Targets come from ``LayeredBsdf``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from richmat_addon.core.enhance import DUST_MASK_FLOOR, enhance
+from richmat_addon.core.maps import ParamMap, PbrInputs
+from richmat_addon.core.schema import CHANNEL_SLICES, bounds
+from torch_models.brdf.model import LayeredBsdf, params_from_vectors
+
+CLASSES: dict[str, tuple[int, ...]] = {"haze": (0,), "dust": (1, 3), "clearcoat": (2, 3), "scattering": (4, 5)}
+INFILL = 0.2
+
+
+def _one(rng: np.random.Generator, theme: str) -> np.ndarray:
+    """One packed parameter vector of a themed class."""
+    types = CLASSES[theme]
+    type_ = int(rng.choice(types))
+    metal = 0.0 if type_ >= 4 else float(rng.choice([0.0, 1.0, rng.uniform()], p=[0.55, 0.35, 0.1]))
+    pbr = PbrInputs("train", ParamMap.constant(*rng.uniform(0.0, 1.0, 3)),
+                    ParamMap.constant(rng.uniform(0.0, 1.0)), ParamMap.constant(metal))
+    mat = enhance(pbr, type_, int(rng.integers(1 << 31)))
+    vec = np.concatenate([np.atleast_1d(mat.params[name].mean()) for name in CHANNEL_SLICES])
+    if type_ in (1, 3):  # dust masks: between the floor and the peak
+        vec[CHANNEL_SLICES["dust_weight"]] *= rng.uniform(DUST_MASK_FLOOR, 1.0)
+    if type_ in (2, 3, 5) and rng.uniform() < 0.3:  # damaged coat texels
+        vec[CHANNEL_SLICES["coat_weight"]] = rng.uniform()
+    return vec
+
+
+def parameter_vectors(n: int, rng: np.random.Generator) -> np.ndarray:
+    """(n, 22) vectors: themed classes in equal shares, ``INFILL`` of them uniform."""
+    lo, hi = (np.array(b) for b in bounds())
+    n_infill = int(round(INFILL * n))
+    themes = list(CLASSES)
+    themed = [_one(rng, themes[k % len(themes)]) for k in range(n - n_infill)]
+    infill = lo + (hi - lo) * rng.uniform(size=(n_infill, len(lo)))
+    out = np.concatenate([np.array(themed).reshape(-1, len(lo)), infill]).astype(np.float32)
+    return out[rng.permutation(n)]
+
+
+@dataclass
+class Batch:
+    vectors: Tensor  # (N, 22)
+    wi: Tensor  # (N, 3)
+    wo: Tensor  # (N, 3)
+    f: Tensor  # (N, 3) f_neu * cos
+    t: Tensor  # (N, 1)
+    r: Tensor  # (N, 1)
+
+
+def _cosine_hemisphere(n: int, gen: torch.Generator) -> Tensor:
+    u = torch.rand(n, 2, generator=gen)
+    r, phi = u[:, 0].sqrt(), 2 * torch.pi * u[:, 1]
+    return torch.stack([r * phi.cos(), r * phi.sin(), (1 - u[:, 0]).clamp(min=1e-6).sqrt()], -1)
+
+
+def _uniform_hemisphere(n: int, gen: torch.Generator) -> Tensor:
+    v = torch.randn(n, 3, generator=gen)
+    v[:, 2] = v[:, 2].abs()
+    return v / v.norm(dim=-1, keepdim=True)
+
+
+def make_batch(pool: Tensor, n: int, gen: torch.Generator) -> Batch:
+    """A batch of n (material, wi, wo) samples from a pool of parameter vectors."""
+    vectors = pool[torch.randint(len(pool), (n,), generator=gen)]
+    wi = _cosine_hemisphere(n, gen)
+    grazing = torch.rand(n, generator=gen) < 0.2
+    wi[grazing] = _uniform_hemisphere(int(grazing.sum()), gen)
+    bsdf = LayeredBsdf(params_from_vectors(vectors), torch.ones(1, 3))
+    with torch.no_grad():
+        wo = _uniform_hemisphere(n, gen)
+        important = torch.rand(n, generator=gen) < 0.5
+        sampled = bsdf.sample(wi, torch.rand(n, 3, generator=gen))
+        wo = torch.where(important[:, None] & (sampled[:, 2:3] > 0), sampled, wo)
+        f = bsdf.eval_neural_part(wi, wo)
+        t, r = bsdf.transmission(wi), bsdf.reflectance(wi)
+    return Batch(vectors, wi, wo, f, t, r)
