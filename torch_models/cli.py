@@ -27,6 +27,7 @@ COMMANDS: dict[str, str] = {
     "enhance": "torch_models.cli_enhance",
     "demo": "torch_models.cli_demo",
     "train-decoder": "torch_models.cli_train_decoder",
+    "fit": "torch_models.cli_fit",
 }
 
 

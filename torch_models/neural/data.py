@@ -56,6 +56,7 @@ def parameter_vectors(n: int, rng: np.random.Generator) -> np.ndarray:
 
 @dataclass
 class Batch:
+    index: Tensor  # (N,) rows of the pool
     vectors: Tensor  # (N, 22)
     wi: Tensor  # (N, 3)
     wo: Tensor  # (N, 3)
@@ -78,7 +79,8 @@ def _uniform_hemisphere(n: int, gen: torch.Generator) -> Tensor:
 
 def make_batch(pool: Tensor, n: int, gen: torch.Generator) -> Batch:
     """A batch of n (material, wi, wo) samples from a pool of parameter vectors."""
-    vectors = pool[torch.randint(len(pool), (n,), generator=gen)]
+    index = torch.randint(len(pool), (n,), generator=gen)
+    vectors = pool[index]
     wi = _cosine_hemisphere(n, gen)
     grazing = torch.rand(n, generator=gen) < 0.2
     wi[grazing] = _uniform_hemisphere(int(grazing.sum()), gen)
@@ -90,4 +92,4 @@ def make_batch(pool: Tensor, n: int, gen: torch.Generator) -> Batch:
         wo = torch.where(important[:, None] & (sampled[:, 2:3] > 0), sampled, wo)
         f = bsdf.eval_neural_part(wi, wo)
         t, r = bsdf.transmission(wi), bsdf.reflectance(wi)
-    return Batch(vectors, wi, wo, f, t, r)
+    return Batch(index, vectors, wi, wo, f, t, r)

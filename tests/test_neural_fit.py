@@ -1,0 +1,97 @@
+"""Fitting latents against a (tiny, trained-here) decoder: dedupe, files, resume, furnace."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from richmat_addon.core.builtin import chipped_paint, sphere_texel_geometry
+from richmat_addon.core.enhance import enhance
+from richmat_addon.core.maps import ParamMap, PbrInputs
+from torch_models.cli import main
+from torch_models.cli_enhance import write_material
+from torch_models.neural import fit
+from tests.test_cli_enhance import read_exr
+from tests.test_neural_training import TINY
+
+
+@pytest.fixture(scope="module")
+def tiny_weights(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("tiny")
+    cfg = folder / "tiny.json"
+    cfg.write_text(json.dumps(dict(TINY, steps=30, sampler_steps=2, checkpoint_every=32)))
+    assert main(["train-decoder", "--config", str(cfg), "--out", str(folder / "run")]) == 0
+    return folder / "run"
+
+
+@pytest.fixture
+def textured(tmp_path: Path) -> Path:
+    pbr = chipped_paint(8)
+    normals, positions = sphere_texel_geometry(8, 8)
+    write_material(tmp_path / "mat", enhance(pbr, 1, 3, normals, positions), {"asset": "test"})
+    return tmp_path / "mat"
+
+
+def test_fit_writes_latent_textures_and_fits_each_vector_once(tiny_weights: Path, textured: Path,
+                                                              tmp_path: Path) -> None:
+    vectors = fit.read_vectors(textured)
+    assert vectors.shape == (8, 8) and len(vectors.inverse) == 64
+    assert len(vectors.unique) <= vectors.exact_unique <= 64
+    out = tmp_path / "fit"
+    assert main(["fit", str(textured), "--out", str(out), "--weights", str(tiny_weights), "--steps", "5"]) == 0
+    record = json.loads((out / "neural.json").read_text())
+    assert record["fitted_vectors"] == len(vectors.unique) and record["texels"] == 64
+    for k in (0, 1):
+        latent = read_exr(out / f"latent_{k}.exr")
+        assert latent.shape == (8, 8, 3) and np.isfinite(latent).all() and (np.abs(latent) < 1.1).all()
+    assert record["furnace"]["passed"] + record["furnace"]["repaired_by_scaling"] == record["fitted_vectors"]
+
+
+def test_constant_material_stays_one_vector(tiny_weights: Path, tmp_path: Path) -> None:
+    pbr = PbrInputs("c", ParamMap.constant(0.5, 0.4, 0.3), ParamMap.constant(0.3), ParamMap.constant(0.0))
+    write_material(tmp_path / "c", enhance(pbr, 2, 1), {"asset": "test"})
+    out = tmp_path / "fit"
+    assert main(["fit", str(tmp_path / "c"), "--out", str(out), "--weights", str(tiny_weights),
+                 "--steps", "3"]) == 0
+    record = json.loads((out / "neural.json").read_text())
+    assert len(record["latent"]) == 6 and record["fitted_vectors"] == 1
+    assert not list(out.glob("*.exr"))
+
+
+def test_interrupted_fit_resumes(tiny_weights: Path, textured: Path, tmp_path: Path,
+                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    calls = {"n": 0}
+    real = fit.decoder_loss
+
+    def interrupting(*args, **kwargs):  # type: ignore[no-untyped-def]
+        calls["n"] += 1
+        if calls["n"] == 4:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    out = tmp_path / "fit"
+    monkeypatch.setattr(fit, "decoder_loss", interrupting)
+    assert main(["fit", str(textured), "--out", str(out), "--weights", str(tiny_weights), "--steps", "6"]) == 130
+    assert (out / "fit_state.safetensors").exists() and not (out / "neural.json").exists()
+    monkeypatch.setattr(fit, "decoder_loss", real)
+    assert main(["fit", str(textured), "--out", str(out), "--weights", str(tiny_weights), "--steps", "6",
+                 "--resume"]) == 0
+    assert (out / "neural.json").exists() and not (out / "fit_state.safetensors").exists()
+
+
+def test_bad_folder_and_missing_weights_are_clear(tmp_path: Path, textured: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["fit", str(tmp_path), "--out", str(tmp_path / "o"), "--weights", str(tmp_path)]) == 2
+    assert "params.json" in capsys.readouterr().err
+    assert main(["fit", str(textured), "--out", str(tmp_path / "o"), "--weights", str(tmp_path)]) == 2
+    assert "train-decoder" in capsys.readouterr().err
+
+
+def test_furnace_repair_scales_only_what_fails() -> None:
+    check = fit.Furnace(albedo=torch.tensor([1.2, 0.9, 1.001]), std_error=torch.tensor([0.01, 0.01, 0.01]),
+                        transmission=torch.tensor([0.5, 0.3, 0.2]))
+    assert check.failing.tolist() == [True, False, False]
+    assert torch.allclose(check.energy_scale(), torch.tensor([0.5 / 0.7, 1.0, 1.0]))

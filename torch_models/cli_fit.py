@@ -1,0 +1,90 @@
+"""Fit a neural material: an enhanced material folder to two RGB latent textures.
+
+MATERIAL_DIR is a folder written by ``enhance`` (params.json and parameter EXRs).
+Writes OUT/latent_0.exr and OUT/latent_1.exr (latent channels 0-2 and 3-5 at
+the material's texture resolution) or, for a constant material, the latent in
+OUT/neural.json, which also records the decoder's digest, how many distinct
+vectors were fitted, the loss and the white-furnace result. Ctrl-C saves the
+state; ``--resume`` continues it.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+HELP = "fit the latent textures of an enhanced material against the frozen decoder"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("material", type=Path, help="an enhanced material folder (params.json + EXRs)")
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--steps", type=int, default=300, help="optimisation steps (default: 300)")
+    parser.add_argument("--weights", type=Path, default=None, help="a training run folder (default: shipped)")
+    parser.add_argument("--resume", action="store_true", help="continue an interrupted fit in OUT")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the direction samples (default: 0)")
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+    import torch
+    from safetensors.torch import load_file, save_file
+    from tqdm import tqdm
+
+    from .cli import InputError, atomic_path
+    from .cli_enhance import write_exr
+    from .neural import fit, weights
+
+    try:
+        mv = fit.read_vectors(args.material)
+        model = weights.load(args.weights or weights.SHIPPED)
+    except (ValueError, FileNotFoundError, KeyError) as exc:
+        raise InputError(str(exc)) from None
+    args.out.mkdir(parents=True, exist_ok=True)
+    state = args.out / "fit_state.safetensors"
+    start, done = None, 0
+    if args.resume and state.exists():
+        saved = load_file(str(state))
+        start, done = saved["latents"], int(saved["step"])
+    latest = {"z": start, "step": done, "loss": float("nan")}
+
+    def progress(step: int, loss: float, z: torch.Tensor) -> None:
+        latest.update(z=z, step=done + step + 1, loss=loss)
+        bar.update(1)
+        bar.set_postfix(loss=f"{loss:.4f}")
+
+    with tqdm(total=args.steps, initial=done, desc=f"fit {len(mv.unique)} vectors", unit="step") as bar:
+        try:
+            z = fit.fit_latents(model, mv.unique, max(0, args.steps - done), seed=args.seed + done,
+                                start=start, progress=progress)
+        except KeyboardInterrupt:
+            if latest["z"] is not None:
+                with atomic_path(state) as tmp:
+                    save_file({"latents": latest["z"], "step": torch.tensor(latest["step"])}, str(tmp))
+            print(f"interrupted at step {latest['step']}; --resume continues from {state}")
+            return 130
+    check = fit.furnace(model, z)
+    scale = check.energy_scale()
+    record = {"decoder_sha256": model.digest, "material": str(args.material), "steps": args.steps,
+              "final_loss": latest["loss"], "texels": int(len(mv.inverse)) if mv.shape else 1,
+              "exact_unique_vectors": mv.exact_unique, "fitted_vectors": len(mv.unique),
+              "cluster_bound": f"each texel within {fit.QUANT / 2:g} of its representative per normalised parameter",
+              "furnace": {"checked": len(z), "passed": int((~check.failing).sum()),
+                          "repaired_by_scaling": int(check.failing.sum()),
+                          "worst_albedo": float(check.albedo.max())}}
+    if mv.shape is None:
+        record["latent"] = [float(x) for x in z[0]]
+        record["energy_scale"] = float(scale[0])
+    else:
+        texels = z[torch.from_numpy(mv.inverse)].reshape(*mv.shape, 6).numpy()
+        write_exr(args.out / "latent_0.exr", np.ascontiguousarray(texels[..., :3]))
+        write_exr(args.out / "latent_1.exr", np.ascontiguousarray(texels[..., 3:]))
+        if bool((scale < 1).any()):
+            write_exr(args.out / "energy_scale.exr", scale[torch.from_numpy(mv.inverse)].reshape(*mv.shape, 1).numpy())
+        record["energy_scale"] = "energy_scale.exr" if bool((scale < 1).any()) else 1.0
+    with atomic_path(args.out / "neural.json") as tmp:
+        tmp.write_text(json.dumps(record, indent=1))
+    state.unlink(missing_ok=True)
+    print(f"fitted {len(mv.unique)} vectors ({mv.exact_unique} exact) for {record['texels']} texels; "
+          f"furnace: {record['furnace']['passed']}/{len(z)} pass; wrote {args.out}")
+    return 0

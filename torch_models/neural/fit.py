@@ -1,0 +1,139 @@
+"""Fit an enhanced material's latent textures against the frozen decoder (paper sec. 4.3).
+
+Model no more than the material needs: texels with equal parameter vectors are
+fitted once (exact dedupe), then vectors that agree to within a quantisation
+step in the normalised parameter space are merged (every texel is within half a
+step, ``QUANT / 2`` per normalised coordinate, of its representative). Latents
+start from the encoder and are optimised with the training loss on samples of
+the analytic model; they are scattered back to texels as two RGB EXR textures.
+A constant material stays one vector in ``neural.json``.
+
+Energy: each fitted representative is checked with a white furnace (Monte Carlo
+albedo of f_neu plus T times a white Lambertian); one that exceeds 1 beyond
+3 sigma gets an energy scale < 1 for its f_neu, recorded in ``neural.json``.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from richmat_addon.core.schema import CHANNEL_SLICES, PARAMS
+from .data import make_batch
+from .networks import LATENT, normalise_params
+from .train import decoder_loss
+from .weights import NeuralModel
+
+QUANT = 1.0 / 256.0
+
+
+@dataclass
+class MaterialVectors:
+    """Per-texel parameter vectors of a material folder, deduplicated."""
+
+    shape: tuple[int, int] | None  # texture size, or None for a constant material
+    unique: np.ndarray  # (K, 22) representatives
+    inverse: np.ndarray  # (H*W,) representative of every texel (empty when constant)
+    exact_unique: int  # distinct vectors before merging
+
+
+def _read_exr(path: Path) -> np.ndarray:
+    import OpenImageIO as oiio
+
+    buf = oiio.ImageBuf(str(path))
+    if buf.has_error:
+        raise ValueError(f"{path}: cannot read ({buf.geterror().strip()})")
+    return np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)
+
+
+def read_vectors(folder: Path) -> MaterialVectors:
+    """Parameter vectors of a folder written by ``enhance`` (params.json + EXRs)."""
+    record_path = folder / "params.json"
+    if not record_path.is_file():
+        raise ValueError(f"{folder}: not an enhanced material folder (no params.json)")
+    record = json.loads(record_path.read_text())
+    maps = {name: _read_exr(folder / file) for name, file in record.get("textures", {}).items()
+            if name in CHANNEL_SLICES}
+    shape = max((m.shape[:2] for m in maps.values()), default=None, key=lambda s: s[0] * s[1])
+    columns = []
+    for p in PARAMS:
+        if p.name in maps:
+            m = maps[p.name]
+            if m.shape[:2] != shape:  # nearest resampling to the largest map
+                rows = (np.arange(shape[0]) * m.shape[0] // shape[0])[:, None]
+                cols = (np.arange(shape[1]) * m.shape[1] // shape[1])[None, :]
+                m = m[rows, cols]
+            columns.append(m.reshape(-1, p.channels))
+        else:
+            value = np.atleast_1d(np.asarray(record["constants"][p.name], np.float32))
+            columns.append(np.broadcast_to(value, ((shape[0] * shape[1]) if shape else 1, p.channels)))
+    vectors = np.nan_to_num(np.concatenate(columns, 1).astype(np.float32))
+    exact, inverse = np.unique(vectors, axis=0, return_inverse=True)
+    keys = np.round(normalise_params(torch.from_numpy(exact)).numpy() / QUANT).astype(np.int64)
+    merged_keys, merged_of_exact = np.unique(keys, axis=0, return_inverse=True)
+    representatives = np.zeros((len(merged_keys), vectors.shape[1]), np.float32)
+    np.add.at(representatives, merged_of_exact.ravel(), exact)
+    representatives /= np.bincount(merged_of_exact.ravel())[:, None]
+    texel_rep = merged_of_exact.ravel()[inverse.ravel()] if shape else np.zeros(0, np.int64)
+    return MaterialVectors(shape, representatives, texel_rep, len(exact))
+
+
+def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int = 8192, seed: int = 0,
+                start: Tensor | None = None, progress=None) -> Tensor:  # type: ignore[no-untyped-def]
+    """Latents (K, 6) of K parameter vectors, from the encoder (or ``start``), optimised ``steps`` times."""
+    pool = torch.from_numpy(vectors)
+    with torch.no_grad():
+        z0 = model.encoder(pool) if start is None else start
+    z = z0.clone().requires_grad_(True)
+    opt = torch.optim.Adam([z], lr=1e-2)
+    gen = torch.Generator().manual_seed(seed)
+    for step in range(steps):
+        b = make_batch(pool, batch, gen)
+        loss = decoder_loss(model.decoder, z[b.index], b)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        if progress is not None:
+            progress(step, loss.item(), z.detach())
+    return z.detach()
+
+
+@dataclass
+class Furnace:
+    albedo: Tensor  # (K,) worst directional albedo over the view directions checked
+    std_error: Tensor  # (K,) its Monte Carlo standard error
+    transmission: Tensor  # (K,) T at that view direction
+
+    @property
+    def failing(self) -> Tensor:
+        return self.albedo > 1.0 + 3.0 * self.std_error
+
+    def energy_scale(self) -> Tensor:
+        """f_neu scale per latent that brings a failing albedo to 1, keeping T (1 where it passes)."""
+        fix = ((1.0 - self.transmission) / (self.albedo - self.transmission).clamp(min=1e-6)).clamp(0.0, 1.0)
+        return torch.where(self.failing, fix, torch.ones_like(fix))
+
+
+def furnace(model: NeuralModel, z: Tensor, n: int = 4096, seed: int = 0) -> Furnace:
+    """White furnace of f_neu + T * (white Lambertian), cosine-sampled, at five view angles."""
+    gen = torch.Generator().manual_seed(seed)
+    out = Furnace(torch.zeros(len(z)), torch.zeros(len(z)), torch.zeros(len(z)))
+    with torch.no_grad():
+        for mu in (1.0, 0.7, 0.4, 0.15, 0.05):
+            wi = torch.tensor([[math.sqrt(1 - mu * mu), 0.0, mu]]).expand(n, 3)
+            u = torch.rand(n, 2, generator=gen)
+            r, phi = u[:, 0].sqrt(), 2 * math.pi * u[:, 1]
+            wo = torch.stack([r * phi.cos(), r * phi.sin(), (1 - u[:, 0]).clamp(min=1e-7).sqrt()], -1)
+            pdf = wo[:, 2] / math.pi
+            for k in range(len(z)):
+                f, t, _ = model.decoder(z[k:k + 1].expand(n, LATENT), wi, wo)
+                est = f.mean(-1) / pdf + t[:, 0]
+                if est.mean() > out.albedo[k]:
+                    out.albedo[k], out.std_error[k] = est.mean(), est.std() / math.sqrt(n)
+                    out.transmission[k] = t[0, 0]
+    return out

@@ -1,0 +1,37 @@
+"""Loading trained networks: safetensors only, never pickle."""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from safetensors.torch import load_file
+
+from .networks import Decoder, Encoder, SamplingDecoder
+
+SHIPPED = Path(__file__).resolve().parent / "weights"
+
+
+@dataclass
+class NeuralModel:
+    encoder: Encoder
+    decoder: Decoder
+    sampler: SamplingDecoder
+    digest: str  # sha256 of the weights file: which decoder a fitted material belongs to
+
+
+def load(folder: Path = SHIPPED) -> NeuralModel:
+    """The networks of a training run folder (weights.safetensors + state.json), frozen."""
+    weights, state = folder / "weights.safetensors", folder / "state.json"
+    if not weights.is_file() or not state.is_file():
+        raise FileNotFoundError(f"{folder}: no trained decoder here (weights.safetensors, state.json); "
+                                "run `python -m torch_models train-decoder` first")
+    cfg = json.loads(state.read_text())["config"]
+    tensors = load_file(str(weights))
+    nets = {"encoder": Encoder(), "decoder": Decoder(cfg["width"], cfg["depth"]), "sampler": SamplingDecoder()}
+    for name, net in nets.items():
+        net.load_state_dict({k[len(name) + 1:]: v for k, v in tensors.items() if k.startswith(name + ".")})
+        net.eval().requires_grad_(False)
+    digest = hashlib.sha256(weights.read_bytes()).hexdigest()
+    return NeuralModel(nets["encoder"], nets["decoder"], nets["sampler"], digest)
