@@ -95,3 +95,27 @@ def test_furnace_repair_scales_only_what_fails() -> None:
                         transmission=torch.tensor([0.5, 0.3, 0.2]))
     assert check.failing.tolist() == [True, False, False]
     assert torch.allclose(check.energy_scale(), torch.tensor([0.5 / 0.7, 1.0, 1.0]))
+
+
+def test_neural_bsdf_samples_follow_its_pdf(tiny_weights: Path) -> None:
+    import math
+
+    from tests.chi2 import chi2_test
+    from torch_models.neural.bsdf import NeuralBsdf
+    from torch_models.neural.weights import load
+
+    model = load(tiny_weights)
+    torch.manual_seed(0)
+    bsdf = NeuralBsdf(model, torch.rand(1, 6) * 2 - 1, torch.tensor([[0.6, 0.3, 0.2]]))
+    wi = torch.tensor([[math.sqrt(1 - 0.6 ** 2), 0.0, 0.6]])
+
+    def sample(n: int) -> torch.Tensor:
+        with torch.no_grad():
+            wo = bsdf.sample(wi.expand(n, 3), torch.rand(n, 3, generator=torch.Generator().manual_seed(1)))
+        return torch.where(wo[:, 2:3] > 0, wo, torch.full_like(wo, math.nan))
+
+    with torch.no_grad():
+        result = chi2_test(sample, lambda wo: bsdf.pdf(wi.expand(len(wo), 3), wo), n_samples=100_000)
+        f = bsdf.eval(wi.expand(2, 3), torch.tensor([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]))
+    assert result.passed(0.01), result
+    assert (f[1] == 0).all() and (f[0] > 0).all()
