@@ -19,7 +19,7 @@ import sys
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
+from typing import Iterator, Union
 
 import bpy
 
@@ -83,8 +83,13 @@ def compile_script_node(node: bpy.types.ShaderNodeScript) -> None:
                            + "\n".join(reports))
 
 
-def _load_image(path: str, color: bool) -> bpy.types.Image:
-    image = bpy.data.images.load(str(Path(path).resolve()), check_existing=True)
+# A texture is a file to load or an image already in the .blend (the add-on's previews).
+Texture = Union[str, bpy.types.Image]
+
+
+def _load_image(texture: Texture, color: bool) -> bpy.types.Image:
+    image = texture if isinstance(texture, bpy.types.Image) else \
+        bpy.data.images.load(str(Path(texture).resolve()), check_existing=True)
     image.colorspace_settings.name = COLOR_SPACE_COLOR if color else COLOR_SPACE_DATA
     return image
 
@@ -106,13 +111,32 @@ def _set_constant(socket: bpy.types.NodeSocket, value: ParamMap) -> None:
     socket.default_value = (*v[:3], 1.0) if socket.type == "RGBA" else v[0]
 
 
-def build_material(mat: EnhancedMaterial, texture_paths: dict[str, str],
+def build_material(mat: EnhancedMaterial, texture_paths: dict[str, Texture],
                    name: str | None = None, node: graph.Node = graph.SURFACE) -> bpy.types.Material:
     """A Cycles material whose surface is the OSL shader of ``mat``'s pruned graph.
 
-    ``texture_paths`` maps parameter names (and ``"base_color"``) to image files;
-    it must hold every parameter that is a texture in ``mat``. ``node`` renders a
-    part of the graph instead (one lobe alone, for agreement tests).
+    ``texture_paths`` maps parameter names (and ``"base_color"``) to image files
+    or images; it must hold every parameter that is a texture in ``mat``. ``node``
+    renders a part of the graph instead (one lobe alone, for agreement tests).
+    """
+    name = name or mat.name
+    material = bpy.data.materials.new(name)
+    material.node_tree.nodes.clear()
+    try:
+        add_enhanced_nodes(material, mat, texture_paths, node)
+    except (RuntimeError, KeyError, ValueError):
+        bpy.data.materials.remove(material)
+        raise
+    return material
+
+
+def add_enhanced_nodes(material: bpy.types.Material, mat: EnhancedMaterial,
+                       texture_paths: dict[str, Texture],
+                       node: graph.Node = graph.SURFACE) -> bpy.types.ShaderNodeScript:
+    """Add the Script node, its textures and a Cycles output to ``material``'s tree.
+
+    Nodes already in the tree stay (the add-on keeps the original normal-map chain
+    there); the caller links them. Returns the Script node.
     """
     pruned = graph.prune(node, mat.constants())
     if pruned is None:
@@ -123,12 +147,8 @@ def build_material(mat: EnhancedMaterial, texture_paths: dict[str, str],
     if missing:
         raise KeyError(f"no texture path for textured parameters {missing}")
 
-    name = name or mat.name
-    material = bpy.data.materials.new(name)
     tree = material.node_tree
-    tree.nodes.clear()
-
-    text = bpy.data.texts.new(f"{name}.osl")
+    text = bpy.data.texts.new(f"{material.name}.osl")
     text.from_string(osl.osl_source(pruned, name="richmat_enhanced"))
     script = tree.nodes.new("ShaderNodeScript")
     script.name, script.label = SCRIPT_NODE, "richmat enhanced (OSL)"
@@ -139,7 +159,7 @@ def build_material(mat: EnhancedMaterial, texture_paths: dict[str, str],
     try:
         compile_script_node(script)
     except RuntimeError:
-        bpy.data.materials.remove(material)
+        tree.nodes.remove(script)
         bpy.data.texts.remove(text)
         raise
 
@@ -167,4 +187,4 @@ def build_material(mat: EnhancedMaterial, texture_paths: dict[str, str],
             tex.location_absolute = (-2 * dx, -row * dy)
             tree.links.new(tex.outputs["Color"], script.inputs[inp.name])
             row += 1
-    return material
+    return script

@@ -1,0 +1,59 @@
+"""Add-on preferences (the torch backend) and the fitted latent textures in a material."""
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import bpy
+
+ADDON = __package__.rsplit(".", 1)[0]  # "bl_ext.<repo>.richmat" when installed as an extension
+LATENT_FILES = ("latent_0.exr", "latent_1.exr")
+LATENT_NODES = ("neural_latent_0", "neural_latent_1")
+_FRAME = "richmat_frame_neural"
+
+
+class RichmatPreferences(bpy.types.AddonPreferences):
+    bl_idname = ADDON
+
+    python: bpy.props.StringProperty(
+        name="Backend Python", subtype="FILE_PATH",
+        description="A Python with torch and richmat's torch_models, used when Blender's own has no torch")
+    source_dir: bpy.props.StringProperty(
+        name="Richmat Source", subtype="DIR_PATH",
+        description="The richmat checkout holding torch_models (not needed if it is pip-installed)")
+    weights_dir: bpy.props.StringProperty(
+        name="Decoder Weights", subtype="DIR_PATH",
+        description="A trained decoder folder; empty: the weights shipped with torch_models")
+
+    def draw(self, context: bpy.types.Context) -> None:
+        for name in ("python", "source_dir", "weights_dir"):
+            self.layout.prop(self, name)
+
+
+def preferences(context: bpy.types.Context):
+    """The add-on's preferences, or their defaults when it was registered without the add-on system."""
+    addon = context.preferences.addons.get(ADDON)
+    if addon is not None and addon.preferences is not None:
+        return addon.preferences
+    return SimpleNamespace(python="", source_dir="", weights_dir="")
+
+
+def assign_latents(enhanced: bpy.types.Material, folder: Path) -> str:
+    """Load the two latent textures into image nodes of the enhanced material (replacing old ones)."""
+    files = [folder / name for name in LATENT_FILES]
+    if not all(f.is_file() for f in files):
+        return "constant material: one latent vector in neural.json, no textures"
+    tree = enhanced.node_tree
+    frame = tree.nodes.get(_FRAME) or tree.nodes.new("NodeFrame")
+    frame.name, frame.label = _FRAME, "neural latents"
+    for k, (node_name, file) in enumerate(zip(LATENT_NODES, files)):
+        node = tree.nodes.get(node_name) or tree.nodes.new("ShaderNodeTexImage")
+        node.name = node.label = node_name
+        image = bpy.data.images.load(str(file), check_existing=True)
+        image.reload()
+        image.colorspace_settings.name = "Non-Color"
+        node.image = image
+        node.interpolation = "Closest"  # latents are per-texel codes, not colours to blend
+        node.parent = frame
+        node.location_absolute = (-600.0, 600.0 + 280.0 * k)
+    return "latent textures assigned"

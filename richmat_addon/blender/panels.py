@@ -1,0 +1,101 @@
+"""The "Richmat" sidebar tab, in the 3D Viewport and in the Shader Editor.
+
+Parameters are shown per lobe from the enhanced material's Script node: an
+unlinked socket is a constant the user edits in place (Bake keeps the edit), a
+linked one is a texture and is shown as such.
+"""
+from __future__ import annotations
+
+import bpy
+
+from ..core import schema
+from ..core.enhance import TYPE_DESCRIPTIONS
+from . import uplift
+from .cycles_builder import SCRIPT_NODE
+
+_LOBE_TITLES = {"dust": "Dust / Fuzz", "coat": "Clearcoat", "conductor": "Conductor", "mix": "Metalness",
+                "specular": "Core / Haze", "dielectric": "Dielectric", "inner": "Inner Scattering",
+                "subsurf": "Subcutaneous"}
+
+
+def _enhanced(context: bpy.types.Context) -> bpy.types.Material | None:
+    obj = context.active_object
+    material = obj.active_material if obj is not None else None
+    if material is None:
+        return None
+    return material if uplift.is_enhanced(material) else material.richmat.enhanced
+
+
+def draw_richmat(layout: bpy.types.UILayout, context: bpy.types.Context) -> None:
+    s = context.scene.richmat
+    col = layout.column()
+    col.prop(s, "enhancement_type")
+    if s.enhancement_type != "AUTO":
+        col.label(text=TYPE_DESCRIPTIONS[int(s.enhancement_type)])
+    col.prop(s, "seed")
+    col.prop(s, "all_slots")
+    col.operator("richmat.uplift_material", icon="SHADING_RENDERED")
+    col.operator("richmat.switch_material", icon="ARROW_LEFTRIGHT")
+    col.operator("richmat.unwrap_uvs", icon="UV")
+    col.separator()
+    col.prop(s, "output_dir")
+    col.operator("richmat.bake_parameters", icon="RENDER_STILL")
+    col.prop(s, "fit_steps")
+    col.operator("richmat.fit_neural", icon="NETWORK_DRIVE")
+    col.operator("richmat.preview_neural", icon="HIDE_OFF")
+    col.operator("richmat.export_materialx", icon="EXPORT")
+    enhanced = _enhanced(context)
+    if enhanced is not None:
+        draw_parameters(layout, enhanced)
+
+
+def draw_parameters(layout: bpy.types.UILayout, enhanced: bpy.types.Material) -> None:
+    script = enhanced.node_tree.nodes.get(SCRIPT_NODE)
+    box = layout.box()
+    box.label(text=f"{enhanced.name}: type {enhanced.richmat.type}, seed {enhanced.richmat.seed}")
+    if script is None:
+        box.label(text="Neural preview active (switch to edit parameters)")
+        return
+    by_lobe: dict[str, list[bpy.types.NodeSocket]] = {}
+    for socket in script.inputs:
+        param = schema.PARAM_BY_NAME.get(socket.name)
+        if param is not None:
+            by_lobe.setdefault(param.lobe, []).append(socket)
+    for lobe, sockets in by_lobe.items():
+        sub = box.column(align=True)
+        sub.label(text=_LOBE_TITLES.get(lobe, lobe))
+        for socket in sockets:
+            if socket.is_linked:
+                sub.label(text=f"{socket.name}: texture", icon="IMAGE_DATA")
+            else:
+                sub.prop(socket, "default_value", text=socket.name)
+    box.label(text="Lobes with weight 0 are pruned; Uplift again to change the type")
+
+
+class RICHMAT_PT_view3d(bpy.types.Panel):
+    bl_idname = "RICHMAT_PT_view3d"
+    bl_label = "Richmat"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Richmat"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        draw_richmat(self.layout, context)
+
+
+class RICHMAT_PT_shader_editor(bpy.types.Panel):
+    bl_idname = "RICHMAT_PT_shader_editor"
+    bl_label = "Richmat"
+    bl_space_type = "NODE_EDITOR"
+    bl_region_type = "UI"
+    bl_category = "Richmat"
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return getattr(context.space_data, "tree_type", "") == "ShaderNodeTree"
+
+    def draw(self, context: bpy.types.Context) -> None:
+        draw_richmat(self.layout, context)
+
+
+CLASSES = (RICHMAT_PT_view3d, RICHMAT_PT_shader_editor)

@@ -1,0 +1,235 @@
+"""Read a Principled BSDF material's PBR inputs into numpy, or say exactly why not.
+
+Supported layouts of each of Base Color, Roughness and Metallic:
+  * an unlinked socket (a constant);
+  * an Image Texture, optionally through Separate Color (one channel of a packed
+    ORM/ARM map) and optionally scaled by a constant (the glTF importer's factor
+    nodes: Math MULTIPLY, Mix MULTIPLY);
+  * Reroute nodes anywhere in between.
+Anything else (noise, ramps, vertex colours...) is a procedural input: the
+enhancement needs per-texel values, so the user must bake it to an image first.
+
+Pixels come through ``Image.pixels.foreach_get`` (one C call per image, no
+per-pixel Python); byte images in sRGB are linearised here, as Cycles would.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import bpy
+import numpy as np
+
+from ..core.maps import ParamMap, PbrInputs
+
+INPUTS = ("Base Color", "Roughness", "Metallic")
+_CHANNELS = {"Red": 0, "Green": 1, "Blue": 2}
+
+
+class InputProblem(ValueError):
+    """Bad input the user can fix; the message says what and how."""
+
+
+@dataclass
+class Source:
+    """Where one PBR input comes from: a constant, or a channel of an image times a factor."""
+
+    constant: tuple[float, ...] | None = None
+    image_node: bpy.types.ShaderNodeTexImage | None = None
+    channel: int | None = None  # None: the colour (RGB); 0-2: one channel
+    factor: tuple[float, ...] = (1.0,)
+
+    @property
+    def image(self) -> bpy.types.Image | None:
+        return self.image_node.image if self.image_node else None
+
+
+@dataclass
+class PbrSources:
+    material: bpy.types.Material
+    principled: bpy.types.ShaderNodeBsdfPrincipled
+    inputs: dict[str, Source] = field(default_factory=dict)
+
+    def image_nodes(self) -> list[bpy.types.ShaderNodeTexImage]:
+        seen: dict[str, bpy.types.ShaderNodeTexImage] = {}
+        for src in self.inputs.values():
+            if src.image_node is not None:
+                seen.setdefault(src.image_node.name, src.image_node)
+        return list(seen.values())
+
+    @property
+    def textured(self) -> bool:
+        return bool(self.image_nodes())
+
+
+def find_principled(material: bpy.types.Material) -> bpy.types.ShaderNodeBsdfPrincipled:
+    """The Principled BSDF feeding the active material output (or the only one)."""
+    if material.node_tree is None:
+        raise InputProblem(f"material {material.name!r} has no node tree (no Principled BSDF)")
+    nodes = material.node_tree.nodes
+    outputs = [n for n in nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    output = next((n for n in outputs if n.is_active_output), outputs[0] if outputs else None)
+    if output is not None and output.inputs["Surface"].is_linked:
+        node = _skip_reroutes(output.inputs["Surface"].links[0].from_node)
+        if node.bl_idname == "ShaderNodeBsdfPrincipled":
+            return node
+    principled = [n for n in nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"]
+    if len(principled) == 1:
+        return principled[0]
+    raise InputProblem(f"material {material.name!r} has no Principled BSDF connected to its output"
+                       if not principled else
+                       f"material {material.name!r} has {len(principled)} Principled BSDFs and none "
+                       "feeds the material output directly")
+
+
+def _skip_reroutes(node: bpy.types.Node) -> bpy.types.Node:
+    while node.bl_idname == "NodeReroute" and node.inputs[0].is_linked:
+        node = node.inputs[0].links[0].from_node
+    return node
+
+
+def _upstream(socket: bpy.types.NodeSocket) -> tuple[bpy.types.Node, bpy.types.NodeSocket]:
+    link = socket.links[0]
+    node, out = link.from_node, link.from_socket
+    while node.bl_idname == "NodeReroute" and node.inputs[0].is_linked:
+        link = node.inputs[0].links[0]
+        node, out = link.from_node, link.from_socket
+    return node, out
+
+
+def _socket(node: bpy.types.Node, identifier: str) -> bpy.types.NodeSocket:
+    return next(s for s in node.inputs if s.identifier == identifier)
+
+
+def _constant_of(socket: bpy.types.NodeSocket) -> tuple[float, ...] | None:
+    if socket.is_linked:
+        return None
+    value = socket.default_value
+    return tuple(float(x) for x in value[:3]) if hasattr(value, "__len__") else (float(value),)
+
+
+def _trace(material: bpy.types.Material, name: str, socket: bpy.types.NodeSocket) -> Source:
+    """Follow one input upstream through the supported layouts."""
+    if not socket.is_linked:
+        return Source(constant=_constant_of(socket))
+    factor: tuple[float, ...] = (1.0,)
+    node, out = _upstream(socket)
+    if node.bl_idname == "ShaderNodeMath" and node.operation == "MULTIPLY":
+        node, out, factor = _factor_branch(material, name, node, [node.inputs[0], node.inputs[1]])
+    elif node.bl_idname == "ShaderNodeMix" and node.data_type == "RGBA" and node.blend_type == "MULTIPLY" \
+            and not node.inputs["Factor"].is_linked and node.inputs["Factor"].default_value == 1.0:
+        node, out, factor = _factor_branch(material, name, node, [_socket(node, "A_Color"), _socket(node, "B_Color")])
+    channel = None
+    if node.bl_idname == "ShaderNodeSeparateColor":
+        if node.mode != "RGB":
+            raise InputProblem(f"{material.name!r}: {name} comes from Separate Color in {node.mode} mode; "
+                               "only RGB channels of a packed map are supported")
+        channel = _CHANNELS[out.name]
+        if not node.inputs[0].is_linked:
+            return Source(constant=(_constant_of(node.inputs[0])[channel] * factor[0],))
+        node, out = _upstream(node.inputs[0])
+    if node.bl_idname != "ShaderNodeTexImage":
+        raise InputProblem(f"{material.name!r}: {name} is fed by the procedural node {node.name!r} "
+                           f"({node.bl_label}); bake it to an image texture first (Cycles Bake, type "
+                           "Emit or Diffuse Color) and connect that image")
+    if out.name == "Alpha":
+        raise InputProblem(f"{material.name!r}: {name} reads the Alpha output of {node.name!r}; "
+                           "connect a colour channel through Separate Color instead")
+    return Source(image_node=node, channel=channel, factor=factor)
+
+
+def _factor_branch(material: bpy.types.Material, name: str, node: bpy.types.Node,
+                   operands: list[bpy.types.NodeSocket]):
+    """A product of one linked operand and one constant: (upstream node, socket, factor)."""
+    linked = [s for s in operands if s.is_linked]
+    constant = [s for s in operands if not s.is_linked]
+    if len(linked) != 1 or len(constant) != 1:
+        raise InputProblem(f"{material.name!r}: {name} is computed by {node.name!r} from two "
+                           "textures; bake it to one image texture first")
+    up, out = _upstream(linked[0])
+    return up, out, _constant_of(constant[0])
+
+
+def read_sources(material: bpy.types.Material) -> PbrSources:
+    principled = find_principled(material)
+    sources = PbrSources(material, principled)
+    for name in INPUTS:
+        sources.inputs[name] = _trace(material, name, principled.inputs[name])
+    for node in sources.image_nodes():
+        check_image(material, node)
+    return sources
+
+
+def check_image(material: bpy.types.Material, node: bpy.types.ShaderNodeTexImage) -> None:
+    """Missing, unreadable, UDIM or linked images are refused before anything changes."""
+    image = node.image
+    where = f"{material.name!r}: image node {node.name!r}"
+    if image is None:
+        raise InputProblem(f"{where} has no image")
+    if image.source == "TILED":
+        raise InputProblem(f"{where} uses the UDIM image {image.name!r}; UDIM tiles are not supported, "
+                           "bake the material to a single-tile image first")
+    if image.source not in ("FILE", "GENERATED"):
+        raise InputProblem(f"{where}: {image.source.lower()} images are not supported")
+    if image.library is not None:
+        raise InputProblem(f"{where}: image {image.name!r} is linked from {image.library.filepath}; "
+                           "make it local first (Object > Relations > Make Local)")
+    if image.source == "FILE" and image.packed_file is None:
+        path = bpy.path.abspath(image.filepath, library=image.library)
+        if not os.path.isfile(path):
+            raise InputProblem(f"{where}: the file of image {image.name!r} is missing ({path}); "
+                               "relink it (File > External Data > Find Missing Files)")
+    if image.size[0] == 0 or image.size[1] == 0:
+        raise InputProblem(f"{where}: image {image.name!r} cannot be read "
+                           f"({bpy.path.abspath(image.filepath) or 'no file'}); replace the file")
+
+
+def _srgb_to_linear(x: np.ndarray) -> np.ndarray:
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def image_pixels(image: bpy.types.Image, max_size: int | None = None) -> np.ndarray:
+    """(H, W, 4) float32, top row first (numpy convention), linear where the image is sRGB.
+
+    ``max_size`` keeps every k-th texel (k a power of two) so the longer side fits.
+    """
+    w, h = image.size
+    flat = np.empty(w * h * image.channels, np.float32)
+    image.pixels.foreach_get(flat)
+    px = flat.reshape(h, w, image.channels)[::-1]  # Blender stores the bottom row first
+    if max_size:
+        step = 1
+        while max(w, h) // step > max_size:
+            step *= 2
+        px = px[::step, ::step]
+    if image.channels < 4:
+        px = np.concatenate([px, np.ones((*px.shape[:2], 4 - image.channels), np.float32)], 2)
+    px = np.ascontiguousarray(px)
+    if image.colorspace_settings.name == "sRGB" and not image.is_float:
+        px[..., :3] = _srgb_to_linear(px[..., :3])
+    return px
+
+
+def _map(source: Source, channels: int, cache: dict[str, np.ndarray], max_size: int | None) -> ParamMap:
+    if source.constant is not None:
+        value = np.asarray(source.constant[:channels], np.float32)
+        return ParamMap(np.resize(value, channels))
+    image = source.image
+    if image.name not in cache:
+        cache[image.name] = image_pixels(image, max_size)
+    px = cache[image.name]
+    values = px[..., :3] if source.channel is None else px[..., source.channel:source.channel + 1]
+    if channels == 1 and values.shape[-1] == 3:  # a colour image into a float socket: Blender's luminance
+        values = (values @ np.array([0.2126, 0.7152, 0.0722], np.float32))[..., None]
+    factor = np.resize(np.asarray(source.factor, np.float32), values.shape[-1])
+    return ParamMap(values * factor)
+
+
+def load_pbr(sources: PbrSources, max_size: int | None = None) -> PbrInputs:
+    """The material's PBR inputs as maps (textures stay textures, constants stay constants)."""
+    cache: dict[str, np.ndarray] = {}
+    inputs = sources.inputs
+    return PbrInputs(sources.material.name,
+                     _map(inputs["Base Color"], 3, cache, max_size),
+                     _map(inputs["Roughness"], 1, cache, max_size),
+                     _map(inputs["Metallic"], 1, cache, max_size))

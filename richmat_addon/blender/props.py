@@ -1,0 +1,56 @@
+"""Settings the add-on keeps in the .blend: per scene (what to do) and per material (what was done)."""
+from __future__ import annotations
+
+import bpy
+
+from ..core.enhance import TYPE_DESCRIPTIONS
+
+TYPE_ITEMS = [("AUTO", "Auto", "Draw a type from the paper's dataset mix (no 4-5 on metals)")] + [
+    (str(k), f"{k}: {text.split(':')[0].split(' (')[0]}", text) for k, text in TYPE_DESCRIPTIONS.items()]
+
+
+class RichmatSceneSettings(bpy.types.PropertyGroup):
+    enhancement_type: bpy.props.EnumProperty(
+        name="Type", items=TYPE_ITEMS, default="AUTO",
+        description="Which lobes the enhancement adds")
+    seed: bpy.props.IntProperty(
+        name="Seed", default=0, min=0,
+        description="Seed of the sampled parameters (mixed with the material name)")
+    all_slots: bpy.props.BoolProperty(
+        name="All Slots", default=True,
+        description="Work on every material slot of the active object, not only the active one")
+    output_dir: bpy.props.StringProperty(
+        name="Folder", subtype="DIR_PATH", default="",
+        description="Where Bake writes parameter maps; empty: a folder next to the .blend file")
+    fit_steps: bpy.props.IntProperty(
+        name="Fit Steps", default=300, min=1, soft_max=2000,
+        description="Optimisation steps of the neural fit")
+
+
+class RichmatMaterialSettings(bpy.types.PropertyGroup):
+    original: bpy.props.PointerProperty(
+        type=bpy.types.Material, name="Original",
+        description="The PBR material this enhanced material was made from")
+    enhanced: bpy.props.PointerProperty(
+        type=bpy.types.Material, name="Enhanced",
+        description="The enhanced material made from this one")
+    uid: bpy.props.StringProperty(
+        name="ID", description="Identifies the material's baked folder so no other material overwrites it")
+    type: bpy.props.IntProperty(name="Type", default=-1)
+    seed: bpy.props.IntProperty(name="Seed", default=0)
+    record: bpy.props.StringProperty(name="Record", description="Enhancement settings (JSON)")
+    bake_dir: bpy.props.StringProperty(name="Baked Folder", subtype="DIR_PATH")
+    neural_dir: bpy.props.StringProperty(name="Neural Folder", subtype="DIR_PATH")
+
+
+CLASSES = (RichmatSceneSettings, RichmatMaterialSettings)
+
+
+def register() -> None:
+    bpy.types.Scene.richmat = bpy.props.PointerProperty(type=RichmatSceneSettings)
+    bpy.types.Material.richmat = bpy.props.PointerProperty(type=RichmatMaterialSettings)
+
+
+def unregister() -> None:
+    del bpy.types.Material.richmat
+    del bpy.types.Scene.richmat
