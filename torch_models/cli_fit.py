@@ -6,6 +6,11 @@ the material's texture resolution) or, for a constant material, the latent in
 OUT/neural.json, which also records the decoder's digest, how many distinct
 vectors were fitted, the loss and the white-furnace result. Ctrl-C saves the
 state; ``--resume`` continues it.
+
+``--progress jsonl`` replaces the progress bar with one JSON object per line on
+stdout, for the Blender add-on (docs/addon.md): ``{"event": "progress", "step",
+"total", "loss"}`` per step, then ``{"event": "done", "out", "files"}``; bad input
+is ``{"event": "error", "message"}`` with exit code 2.
 """
 from __future__ import annotations
 
@@ -23,6 +28,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--weights", type=Path, default=None, help="a training run folder (default: shipped)")
     parser.add_argument("--resume", action="store_true", help="continue an interrupted fit in OUT")
     parser.add_argument("--seed", type=int, default=0, help="seed of the direction samples (default: 0)")
+    parser.add_argument("--progress", choices=("bar", "jsonl"), default="bar",
+                        help="a progress bar (default) or JSON lines on stdout (for the Blender add-on)")
+
+
+def _emit(event: str, **fields: object) -> None:
+    print(json.dumps({"event": event, **fields}), flush=True)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -35,10 +46,13 @@ def run(args: argparse.Namespace) -> int:
     from .cli_enhance import write_exr
     from .neural import fit, weights
 
+    jsonl = args.progress == "jsonl"
     try:
         mv = fit.read_vectors(args.material)
         model = weights.load(args.weights or weights.SHIPPED)
     except (ValueError, FileNotFoundError, KeyError) as exc:
+        if jsonl:
+            _emit("error", message=str(exc))
         raise InputError(str(exc)) from None
     args.out.mkdir(parents=True, exist_ok=True)
     state = args.out / "fit_state.safetensors"
@@ -52,8 +66,11 @@ def run(args: argparse.Namespace) -> int:
         latest.update(z=z, step=done + step + 1, loss=loss)
         bar.update(1)
         bar.set_postfix(loss=f"{loss:.4f}")
+        if jsonl:
+            _emit("progress", step=done + step + 1, total=args.steps, loss=loss)
 
-    with tqdm(total=args.steps, initial=done, desc=f"fit {len(mv.unique)} vectors", unit="step") as bar:
+    with tqdm(total=args.steps, initial=done, desc=f"fit {len(mv.unique)} vectors", unit="step",
+              disable=jsonl) as bar:
         try:
             z = fit.fit_latents(model, mv.unique, max(0, args.steps - done), seed=args.seed + done,
                                 start=start, progress=progress)
@@ -85,6 +102,9 @@ def run(args: argparse.Namespace) -> int:
     with atomic_path(args.out / "neural.json") as tmp:
         tmp.write_text(json.dumps(record, indent=1))
     state.unlink(missing_ok=True)
+    if jsonl:
+        _emit("done", out=str(args.out), files=sorted(f.name for f in args.out.iterdir() if f.is_file()))
+        return 0
     print(f"fitted {len(mv.unique)} vectors ({mv.exact_unique} exact) for {record['texels']} texels; "
           f"furnace: {record['furnace']['passed']}/{len(z)} pass; wrote {args.out}")
     return 0
