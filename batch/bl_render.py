@@ -1,0 +1,180 @@
+"""Blender side, render: the dataset's camera orbit, light, Cycles settings and outputs.
+
+One render pass per frame gives everything: the beauty (AgX, PNG) through the
+scene output, and through the compositor's File Output node one multilayer
+EXR holding world normals and positions (Cycles passes) and the AOVs
+``basecolor``, ``latent_a``, ``latent_b`` and ``coverage``, which each
+material writes with Shader AOV Output nodes. AOVs are neither tone-mapped
+nor denoised; the EXR holds scene values.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+from pathlib import Path
+from typing import Any
+
+import bpy
+from mathutils import Vector
+
+AOVS = {"basecolor": "COLOR", "latent_a": "COLOR", "latent_b": "COLOR", "coverage": "VALUE"}
+PASSES = ("Normal", "Position")
+LENS_MM, SENSOR_MM = 35.0, 32.0
+ELEVATION_DEG, ELEVATION_SWING_DEG = 25.0, 10.0
+# The unit cube's bounding sphere (radius sqrt(3)/2) fills the frame with this margin.
+FRAMING_MARGIN = 1.08
+
+
+def configure_cycles(scene: bpy.types.Scene, resolution: int, samples: int, threshold: float,
+                     threads: int) -> None:
+    scene.render.engine = "CYCLES"
+    cy = scene.cycles
+    cy.device = "CPU"
+    cy.shading_system = True  # our enhanced material is an OSL shader
+    cy.samples = samples
+    cy.use_adaptive_sampling = True
+    cy.adaptive_threshold = threshold
+    cy.max_bounces = cy.diffuse_bounces = cy.glossy_bounces = cy.transmission_bounces = 3
+    cy.transparent_max_bounces = 8
+    cy.volume_bounces = 0
+    cy.seed = 0
+    cy.use_animated_seed = False
+    cy.use_denoising = True
+    cy.denoiser = "OPENIMAGEDENOISE"
+    r = scene.render
+    r.resolution_x = r.resolution_y = resolution
+    r.resolution_percentage = 100
+    r.use_persistent_data = True  # the BVH is built once for all frames
+    r.threads_mode = "FIXED"
+    r.threads = threads
+    r.use_freestyle = False
+    r.use_stamp = False
+    scene.view_settings.view_transform = "AgX"
+    scene.view_settings.look = "None"
+
+
+def probe_world(probe: Path) -> bpy.types.World:
+    """The probe lights the object; camera rays see black (background of the dataset)."""
+    world = bpy.data.worlds.new("richmat_probe")
+    tree = world.node_tree
+    tree.nodes.clear()
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(str(probe), check_existing=True)
+    lit = tree.nodes.new("ShaderNodeBackground")
+    black = tree.nodes.new("ShaderNodeBackground")
+    black.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    path = tree.nodes.new("ShaderNodeLightPath")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    out = tree.nodes.new("ShaderNodeOutputWorld")
+    tree.links.new(env.outputs["Color"], lit.inputs["Color"])
+    tree.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
+    tree.links.new(lit.outputs["Background"], mix.inputs[1])
+    tree.links.new(black.outputs["Background"], mix.inputs[2])
+    tree.links.new(mix.outputs["Shader"], out.inputs["Surface"])
+    return world
+
+
+def start_azimuth(asset_id: str, seed: int) -> float:
+    digest = hashlib.sha256(f"{seed}\0{asset_id}\0camera".encode()).digest()
+    return 2 * math.pi * int.from_bytes(digest[:8], "big") / 2.0 ** 64
+
+
+def orbit(scene: bpy.types.Scene, frames: int, azimuth0: float) -> bpy.types.Object:
+    """A closed, smooth orbit: one turn, elevation swinging once up and down, looking at the origin."""
+    cam = bpy.data.objects.new("richmat_camera", bpy.data.cameras.new("richmat_camera"))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    cam.data.lens, cam.data.sensor_width, cam.data.sensor_fit = LENS_MM, SENSOR_MM, "HORIZONTAL"
+    cam.data.clip_start, cam.data.clip_end = 0.01, 100.0
+    half_fov = math.atan(SENSOR_MM / 2 / LENS_MM)
+    distance = FRAMING_MARGIN * (math.sqrt(3) / 2) / math.sin(half_fov)
+    for i in range(frames):
+        t = i / frames
+        az = azimuth0 + 2 * math.pi * t
+        el = math.radians(ELEVATION_DEG + ELEVATION_SWING_DEG * math.sin(2 * math.pi * t))
+        cam.location = distance * Vector((math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)))
+        cam.rotation_euler = (-cam.location).to_track_quat("-Z", "Y").to_euler()
+        cam.keyframe_insert("location", frame=i)
+        cam.keyframe_insert("rotation_euler", frame=i)
+    scene.frame_start, scene.frame_end = 0, frames - 1
+    return cam
+
+
+def add_aovs(view_layer: bpy.types.ViewLayer) -> None:
+    view_layer.use_pass_normal = True
+    view_layer.use_pass_position = True
+    for name, kind in AOVS.items():
+        aov = view_layer.aovs.add()
+        aov.name, aov.type = name, kind
+
+
+def compositor_outputs(scene: bpy.types.Scene, passes_dir: Path) -> None:
+    """Render result to the scene output (beauty), passes and AOVs to one multilayer EXR per frame."""
+    tree = bpy.data.node_groups.new("richmat_outputs", "CompositorNodeTree")
+    scene.compositing_node_group = tree
+    layers = tree.nodes.new("CompositorNodeRLayers")
+    tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+    group_out = tree.nodes.new("NodeGroupOutput")
+    tree.links.new(layers.outputs["Image"], group_out.inputs[0])
+    files = tree.nodes.new("CompositorNodeOutputFile")
+    files.directory = str(passes_dir) + "/"
+    files.file_name = ""
+    files.format.media_type = "MULTI_LAYER_IMAGE"
+    files.format.file_format = "OPEN_EXR_MULTILAYER"
+    files.format.color_depth = "16"
+    files.format.exr_codec = "ZIP"
+    for name in (*PASSES, *AOVS):
+        kind = "VECTOR" if name in PASSES else "FLOAT" if AOVS[name] == "VALUE" else "RGBA"
+        files.file_output_items.new(kind, name)
+        tree.links.new(layers.outputs[name], files.inputs[name])
+
+
+def beauty_output(scene: bpy.types.Scene, rgb_dir: Path) -> None:
+    scene.render.filepath = str(rgb_dir) + "/"
+    settings = scene.render.image_settings
+    settings.media_type = "IMAGE"
+    settings.file_format = "PNG"
+    settings.color_mode = "RGB"
+    settings.color_depth = "8"
+
+
+def camera_record(scene: bpy.types.Scene, cam: bpy.types.Object, frames: int) -> dict[str, Any]:
+    """Intrinsics (pixels) and per-frame camera-to-world matrices (Blender camera: -Z forward, +Y up)."""
+    res = scene.render.resolution_x
+    focal_px = cam.data.lens / cam.data.sensor_width * res
+    record = {"convention": "Blender/OpenGL camera: looks down -Z, +Y up; world Z up; matrices row-major",
+              "intrinsics": {"width": res, "height": scene.render.resolution_y, "fx": focal_px, "fy": focal_px,
+                             "cx": res / 2, "cy": scene.render.resolution_y / 2, "lens_mm": cam.data.lens,
+                             "sensor_width_mm": cam.data.sensor_width},
+              "frames": []}
+    for i in range(frames):
+        scene.frame_set(i)
+        c2w = cam.matrix_world.copy()
+        record["frames"].append({"frame": i, "camera_to_world": [list(r) for r in c2w],
+                                 "world_to_camera": [list(r) for r in c2w.inverted()]})
+    return record
+
+
+def encode_video(frames_dir: Path, frames: int, fps: int, out: Path) -> None:
+    """The beauty PNGs as an H.264 MP4 with Blender's own ffmpeg (a sequencer scene)."""
+    scene = bpy.data.scenes.new("richmat_video")
+    first = sorted(frames_dir.glob("*.png"))[0]
+    editor = scene.sequence_editor_create()
+    strip = editor.strips.new_image("frames", str(first), 1, 1)
+    for path in sorted(frames_dir.glob("*.png"))[1:]:
+        strip.elements.append(path.name)
+    src = bpy.data.scenes[0].render
+    scene.render.resolution_x, scene.render.resolution_y = src.resolution_x, src.resolution_y
+    scene.render.resolution_percentage = 100
+    scene.render.fps = fps
+    scene.frame_start, scene.frame_end = 1, frames
+    scene.view_settings.view_transform = "Standard"  # the PNGs are display values already
+    settings = scene.render.image_settings
+    settings.media_type = "VIDEO"
+    settings.file_format = "FFMPEG"
+    scene.render.ffmpeg.format = "MPEG4"
+    scene.render.ffmpeg.codec = "H264"
+    scene.render.ffmpeg.constant_rate_factor = "HIGH"
+    scene.render.filepath = str(out)
+    scene.render.use_file_extension = False
+    bpy.ops.render.render(animation=True, scene=scene.name)

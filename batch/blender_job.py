@@ -1,0 +1,146 @@
+"""The per-asset Blender job (run by the orchestrator, one process per asset and stage).
+
+``prepare``: import, check, unwrap, normalise, enhance every material into
+``materials/<name>/``, save ``scene.blend`` and ``asset.json``.
+``render``: open ``scene.blend`` (scripts off), give every material its
+enhanced Cycles shader plus the dataset AOVs, render the orbit (PNG beauty +
+multilayer EXR intrinsics per frame), encode the MP4, write ``cameras.json``
+and ``render.json``.
+A bad asset ends in ``error.json`` and exit code 3; anything else that goes
+wrong is a crash the orchestrator records with its stderr.
+
+Run as ``python batch/blender_job.py STAGE ...`` (pip bpy) or
+``blender -b -Y --factory-startup -P batch/blender_job.py -- STAGE ...``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+import bpy  # noqa: E402
+
+from batch.bl_scene import BadAsset  # noqa: E402
+
+BAD_INPUT_EXIT = 3  # batch.pipeline.BAD_INPUT_EXIT (not imported: the orchestrator side stays bpy-free)
+DUST_TYPES = (1, 3)
+UNTEXTURED_DUST_SIZE = 256  # texture size for dust masks of a material without textures
+
+
+def prepare(args: argparse.Namespace) -> None:
+    from richmat_addon.core.enhance import enhance, is_metallic
+    from torch_models.cli_enhance import safe_name, write_material
+
+    from batch import bl_materials, bl_scene
+    from batch.enhancement_plan import material_type
+
+    bl_scene.empty_scene()
+    loaded = bl_scene.import_asset(args.asset)
+    removed = bl_scene.remove_drivers_and_extras()
+    geometry = bl_scene.check_geometry()
+    notes = bl_materials.unwrap_missing_uvs()
+    bl_materials.ensure_materials()
+    norm = bl_scene.normalise()
+    materials, taken = [], set()
+    for mat in bl_materials.used_materials():
+        source = bl_materials.read_pbr(mat, args.max_texture)
+        metallic = is_metallic(source.pbr)
+        type_, type_note = material_type(args.type, metallic)
+        normals = positions = None
+        world_note = None
+        if type_ in DUST_TYPES:
+            sizes = [m.shape for m in (source.pbr.base_color, source.pbr.roughness, source.pbr.metalness) if m.shape]
+            size = max(sizes, key=lambda s: s[0] * s[1]) if sizes else (min(UNTEXTURED_DUST_SIZE, args.max_texture),) * 2
+            normals, positions, world_note = bl_materials.world_maps(mat, size)
+        enhanced = enhance(source.pbr, type_, args.seed, world_normals=normals, world_positions=positions)
+        folder = args.work / "materials" / safe_name(mat.name, taken)
+        write_material(folder, enhanced, {"asset": args.asset.name, "material": mat.name, "type_note": type_note})
+        materials.append({"name": mat.name, "folder": folder.name, "type": type_, "type_note": type_note,
+                          "metallic": metallic, "mean_base_color": source.pbr.base_color.mean().tolist(),
+                          "settings": enhanced.settings,
+                          "world_maps": "rasterised" if normals is not None else world_note, "notes": source.notes})
+    bpy.ops.wm.save_as_mainfile(filepath=str(args.work / "scene.blend"), copy=True, compress=False)
+    record = {"asset_id": args.asset_id, "type": args.type, "blender_version": bpy.app.version_string,
+              **loaded, "removed": removed, "geometry": geometry, "normalisation": norm,
+              "notes": notes + [n for m in materials for n in m["notes"]], "materials": materials}
+    (args.work / "asset.json").write_text(json.dumps(record, indent=1, ensure_ascii=False, default=str))
+
+
+def render(args: argparse.Namespace) -> None:
+    from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
+
+    prefer_blender_bundled_modules()  # before anything imports OpenImageIO: OSL needs Blender's copy
+    from batch import bl_render, dataset_material
+
+    bpy.ops.wm.open_mainfile(filepath=str(args.work / "scene.blend"), load_ui=False, use_scripts=False)
+    prepared = json.loads((args.work / "asset.json").read_text(encoding="utf-8"))
+    scene = bpy.context.scene
+    timings: dict[str, float] = {}
+    start = time.monotonic()
+    replacements = {m["name"]: dataset_material.build(args.work / "materials" / m["folder"])
+                    for m in prepared["materials"]}
+    for obj in scene.objects:
+        for slot in getattr(obj, "material_slots", []):
+            if slot.material is not None and slot.material.name in replacements:
+                slot.material = replacements[slot.material.name]
+    timings["materials"] = round(time.monotonic() - start, 3)
+
+    bl_render.configure_cycles(scene, args.resolution, args.samples, args.adaptive_threshold, args.threads)
+    scene.world = bl_render.probe_world(args.probe)
+    cam = bl_render.orbit(scene, args.frames, bl_render.start_azimuth(args.asset_id, args.seed))
+    bl_render.add_aovs(scene.view_layers[0])
+    bl_render.compositor_outputs(scene, args.work / "passes")
+    bl_render.beauty_output(scene, args.work / "rgb")
+    start = time.monotonic()
+    bpy.ops.render.render(animation=True, scene=scene.name)
+    timings["frames"] = round(time.monotonic() - start, 3)
+    cameras = bl_render.camera_record(scene, cam, args.frames)
+    (args.work / "cameras.json").write_text(json.dumps(cameras, indent=1))
+    start = time.monotonic()
+    bl_render.encode_video(args.work / "rgb", args.frames, fps=8, out=args.work / "orbit.mp4")
+    timings["video"] = round(time.monotonic() - start, 3)
+    frames = [{"frame": i, "beauty": f"rgb/{i:04d}.png", "intrinsics": f"passes/{i:04d}.exr"}
+              for i in range(args.frames)]
+    (args.work / "render.json").write_text(json.dumps({"frames": frames, "timings_s": timings}, indent=1))
+
+
+def parse(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="blender_job.py", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="stage", required=True)
+    p = sub.add_parser("prepare")
+    p.add_argument("--asset", type=Path, required=True)
+    p.add_argument("--type", type=int, required=True)
+    p.add_argument("--max-texture", type=int, required=True)
+    r = sub.add_parser("render")
+    r.add_argument("--frames", type=int, required=True)
+    r.add_argument("--resolution", type=int, required=True)
+    r.add_argument("--samples", type=int, required=True)
+    r.add_argument("--adaptive-threshold", type=float, required=True)
+    r.add_argument("--probe", type=Path, required=True)
+    r.add_argument("--threads", type=int, default=1)
+    for stage in (p, r):
+        stage.add_argument("--work", type=Path, required=True)
+        stage.add_argument("--asset-id", required=True)
+        stage.add_argument("--seed", type=int, required=True)
+    return parser.parse_args(argv)
+
+
+def main(argv: list[str]) -> int:
+    args = parse(argv)
+    try:
+        {"prepare": prepare, "render": render}[args.stage](args)
+    except BadAsset as exc:
+        (args.work / "error.json").write_text(json.dumps({"stage": args.stage, "reason": str(exc)}))
+        print(f"bad asset: {exc}", file=sys.stderr)
+        return BAD_INPUT_EXIT
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]))

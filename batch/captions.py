@@ -1,0 +1,74 @@
+"""A caption per asset from what is known, without a captioning model or the network.
+
+Asset name, material names, the colour of each material's mean base colour,
+metal or not, plus the enhancement keywords with their strength ("light dust",
+"scratched glossy clearcoat"), as the paper augments its captions with the
+enhancement type.
+"""
+from __future__ import annotations
+
+import colorsys
+import re
+from typing import Any, Sequence
+
+# Hue names by upper bound of the hue angle in degrees.
+_HUES = ((15, "red"), (45, "orange"), (70, "yellow"), (160, "green"), (200, "cyan"),
+         (260, "blue"), (300, "purple"), (345, "pink"), (360, "red"))
+
+
+_DAMAGED = {"scratches": "scratched", "dents": "dented"}
+
+
+def colour_name(linear_rgb: Sequence[float]) -> str:
+    """A plain colour word for a linear RGB base colour."""
+    srgb = [max(0.0, min(1.0, c)) ** (1 / 2.2) for c in linear_rgb]
+    h, s, v = colorsys.rgb_to_hsv(*srgb)
+    if v < 0.15:
+        return "black"
+    if s < 0.15:
+        return "white" if v > 0.85 else "light grey" if v > 0.6 else "grey" if v > 0.35 else "dark grey"
+    hue = next(name for bound, name in _HUES if h * 360 <= bound)
+    if hue == "orange" and v < 0.6:
+        hue = "brown"
+    return ("dark " if v < 0.45 else "pale " if s < 0.35 else "") + hue
+
+
+def _strength(value: float, lo: float, hi: float) -> str:
+    t = (value - lo) / (hi - lo) if hi > lo else 0.5
+    return "light" if t < 1 / 3 else "moderate" if t < 2 / 3 else "heavy"
+
+
+def enhancement_keywords(settings: dict[str, Any]) -> list[str]:
+    """Keywords of one material's enhancement settings (``params.json``'s ``settings``)."""
+    words = [f"{_strength(settings.get('haze_weight', 0.25), 0.1, 0.4)} haze"]
+    if "dust_peak" in settings:
+        words.append(f"{_strength(settings['dust_peak'], 0.3, 0.9)} dust")
+    if "fuzz_weight" in settings:
+        words.append(f"{_strength(settings['fuzz_weight'], 0.2, 0.7)} fuzz")
+    if "coat_ior" in settings:
+        damage = settings.get("coat_damage", "none")
+        words.append("glossy clearcoat" if damage == "none" else f"{_DAMAGED.get(damage, damage)} glossy clearcoat")
+    if "inner_weight" in settings:
+        words.append(f"{_strength(settings['inner_weight'], 0.2, 0.6)} subsurface scattering")
+    return words
+
+
+def readable(name: str) -> str:
+    """``WaterBottle_v2.001`` -> ``water bottle v2``."""
+    text = re.sub(r"\.\d{3}$", "", name)
+    text = re.sub(r"(?<=[a-z])(?=[A-Z])", " ", text)
+    text = re.sub(r"[-_.]+|\s+", " ", text).strip().lower()
+    return re.sub(r"\b[0-9a-f]{10}$", "", text).strip() or "object"
+
+
+def caption(asset_name: str, materials: Sequence[dict[str, Any]]) -> str:
+    """One sentence: the object, then each material with colour, kind and enhancements."""
+    parts = []
+    for m in materials:
+        kind = "metal" if m["metallic"] else "material"
+        words = ", ".join(enhancement_keywords(m["settings"]))
+        colour, name = colour_name(m["mean_base_color"]), readable(m["name"])
+        described = name if colour.split()[-1] in name.split() else f"{colour} {name}"
+        parts.append(f"{described} {kind} with {words}")
+    body = "; ".join(parts) if parts else "no materials"
+    return f"a {readable(asset_name)}: {body}"

@@ -1,0 +1,50 @@
+"""Blender side: a prepared material as its enhanced Cycles shader plus the dataset's AOV outputs.
+
+The shader is ``richmat_addon.blender.cycles_builder``'s OSL graph; next to it
+this adds Shader AOV Output nodes for the base colour (the material's own input,
+not Cycles' diffuse colour, which is wrong for metals), both latent textures
+(Non-Color, so never transformed) and a coverage value of 1.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import bpy
+
+from richmat_addon.blender.cycles_builder import COLOR_SPACE_COLOR, COLOR_SPACE_DATA, build_material
+
+from . import material_folder
+
+
+def _aov(tree: bpy.types.NodeTree, name: str) -> bpy.types.Node:
+    node = tree.nodes.new("ShaderNodeOutputAOV")
+    node.aov_name = name
+    node.name = f"aov_{name}"
+    return node
+
+
+def _texture(tree: bpy.types.NodeTree, path: str, colour: bool) -> bpy.types.Node:
+    node = tree.nodes.new("ShaderNodeTexImage")
+    node.image = bpy.data.images.load(path, check_existing=True)
+    node.image.colorspace_settings.name = COLOR_SPACE_COLOR if colour else COLOR_SPACE_DATA
+    return node
+
+
+def build(folder: Path) -> bpy.types.Material:
+    mat, paths, record = material_folder.load(folder)
+    material = build_material(mat, paths, name=f"richmat_{record['material']}")
+    tree = material.node_tree
+    base = _aov(tree, "basecolor")
+    if "base_color" in paths:
+        tree.links.new(_texture(tree, paths["base_color"], colour=True).outputs["Color"], base.inputs["Color"])
+    else:
+        base.inputs["Color"].default_value = (*mat.base_color.value[:3].tolist(), 1.0)
+    files, values = material_folder.latents(folder)
+    for i, name in enumerate(("latent_a", "latent_b")):
+        node = _aov(tree, name)
+        if files is not None:
+            tree.links.new(_texture(tree, files[i], colour=False).outputs["Color"], node.inputs["Color"])
+        else:
+            node.inputs["Color"].default_value = (*values[3 * i:3 * i + 3], 1.0)
+    _aov(tree, "coverage").inputs["Value"].default_value = 1.0
+    return material

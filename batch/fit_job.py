@@ -1,0 +1,48 @@
+"""Fit step of one asset (a torch process): every enhanced material of the work folder.
+
+Runs ``python -m torch_models fit`` in-process once per material folder
+(``materials/<name>/`` -> ``materials/<name>/neural/``), so torch is imported
+once per asset, and writes ``fit.json`` with each material's white-furnace
+result. The fit repairs a latent that gains energy by scaling its f_neu
+(``energy_scale``, see docs/neural-material.md) instead of dropping the
+material; how many were repaired is recorded per material and in the manifest.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--work", type=Path, required=True)
+    parser.add_argument("--decoder", type=Path, required=True)
+    parser.add_argument("--steps", type=int, required=True)
+    parser.add_argument("--threads", type=int, default=1)
+    args = parser.parse_args(argv)
+    sys.path.insert(0, str(REPO))
+    import torch
+
+    from torch_models.cli import main as torch_models_main
+
+    torch.set_num_threads(args.threads)
+    record: dict = {"torch_version": torch.__version__, "decoder": str(args.decoder), "materials": {}}
+    for folder in sorted(p.parent for p in (args.work / "materials").glob("*/params.json")):
+        code = torch_models_main(["fit", str(folder), "--out", str(folder / "neural"),
+                                  "--weights", str(args.decoder), "--steps", str(args.steps)])
+        if code != 0:
+            raise SystemExit(f"fit of {folder.name} failed with exit code {code}")
+        neural = json.loads((folder / "neural" / "neural.json").read_text())
+        record["materials"][folder.name] = {"furnace": neural["furnace"], "final_loss": neural["final_loss"],
+                                            "fitted_vectors": neural["fitted_vectors"],
+                                            "decoder_sha256": neural["decoder_sha256"]}
+    (args.work / "fit.json").write_text(json.dumps(record, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

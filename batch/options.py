@@ -1,0 +1,105 @@
+"""Command-line options of render_dataset.py and the settings that decide an asset's output.
+
+Everything that changes what is written for an asset goes into ``Settings`` and
+its hash: a finished asset is skipped only when its manifest carries the same
+hash, so changing the resolution or the decoder re-renders it.
+"""
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+DEFAULT_PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
+DEFAULT_DECODER = REPO / "torch_models" / "neural" / "weights"
+# Bumped when the per-asset output format or pipeline changes meaning.
+PIPELINE_VERSION = 1
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="render_dataset.py",
+        description="Render the neural-material dataset: per asset a 16-frame orbit (PNG + MP4), intrinsic "
+                    "maps (EXR), fitted latent textures, cameras and a caption. Same arguments under "
+                    "`blender -b -P batch/render_dataset.py -- ARGS`.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    add = parser.add_argument
+    add("--input", type=Path, required=True, help="a folder of assets (searched recursively) or a text file "
+                                                 "listing one asset path per line")
+    add("--output", type=Path, required=True, help="output folder (one subfolder per asset, ledgers in _ledger/)")
+    add("--frames", type=int, default=16, help="frames of the orbit")
+    add("--resolution", type=int, default=512, help="image width and height in pixels")
+    add("--samples", type=int, default=32, help="Cycles samples per pixel (adaptive, denoised; "
+                                                "default chosen in docs/render_speed.json)")
+    add("--adaptive-threshold", type=float, default=0.05, help="Cycles adaptive sampling noise threshold")
+    add("--probe", type=Path, default=DEFAULT_PROBE, help="HDR light probe (equirectangular)")
+    add("--decoder", type=Path, default=DEFAULT_DECODER, help="trained decoder folder "
+                                                             "(weights.safetensors + state.json)")
+    add("--fit-steps", type=int, default=300, help="latent optimisation steps per material")
+    add("--max-texture", type=int, default=512, help="larger textures are downscaled to this size (noted)")
+    add("--shard", default=None, help="I/N: render only the assets of shard I of N (stable hash split); "
+                                      "default: SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT when set, else 0/1")
+    add("--workers", type=int, default=1, help="assets rendered at once (CPU threads are split between them)")
+    add("--timeout", type=float, default=1800.0, help="seconds per asset (all stages of one attempt) before the running process group is killed")
+    add("--retries", type=int, default=1, help="extra attempts after a crash or timeout (bad input is not retried)")
+    add("--seed", type=int, default=0, help="global seed: enhancement types and parameters, camera start angle")
+    add("--blender", default=None, help="Blender executable for the per-asset jobs; default: this Blender "
+                                        "when run under `blender -b -P`, else this Python with the bpy module")
+    add("--python", default=None, help="Python with torch for the fit step; default: this Python, or "
+                                       "the repo's .venv under Blender, or $RICHMAT_PYTHON")
+    return parser
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What an asset's output depends on (besides the asset file itself)."""
+
+    pipeline: int
+    frames: int
+    resolution: int
+    samples: int
+    adaptive_threshold: float
+    probe_sha256: str
+    decoder_sha256: str
+    fit_steps: int
+    max_texture: int
+    seed: int
+
+    def hash(self) -> str:
+        return hashlib.sha256(json.dumps(asdict(self), sort_keys=True).encode()).hexdigest()[:16]
+
+
+def file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with path.open("rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def validate(args: argparse.Namespace) -> None:
+    for name in ("frames", "resolution", "samples", "workers", "fit_steps", "max_texture"):
+        if getattr(args, name) < 1:
+            raise ValueError(f"--{name.replace('_', '-')} must be at least 1")
+    if args.timeout <= 0 or args.retries < 0:
+        raise ValueError("--timeout must be positive and --retries non-negative")
+    if not args.probe.is_file():
+        raise ValueError(f"--probe {args.probe}: no such file")
+    if not (args.decoder / "weights.safetensors").is_file():
+        raise ValueError(f"--decoder {args.decoder}: no weights.safetensors (train one with "
+                         "`python -m torch_models train-decoder` or pass a training run folder)")
+
+
+def settings_of(args: argparse.Namespace) -> Settings:
+    return Settings(PIPELINE_VERSION, args.frames, args.resolution, args.samples, args.adaptive_threshold,
+                    file_sha256(args.probe), file_sha256(args.decoder / "weights.safetensors"),
+                    args.fit_steps, args.max_texture, args.seed)
+
+
+def cpu_threads(workers: int) -> int:
+    """Render threads per job so that K jobs share the machine's cores."""
+    return max(1, (os.cpu_count() or 1) // workers)

@@ -1,0 +1,304 @@
+"""The farm orchestrator without Blender: sharding, ids, ledger, publish, timeouts, crashes, resume.
+
+The per-asset children are replaced by two small stand-in programs written
+into tmp_path: a fake ``blender`` (called with Blender's command line, ``-b
+... -P job.py -- STAGE ARGS``) and a fake torch ``python`` for the fit step.
+What they do depends on the asset's file name: ``hang`` sleeps (and leaves a
+grandchild that must die with it), ``crash`` segfaults, ``bad`` reports bad
+input, ``flaky`` crashes once, anything else succeeds after RENDER_SECONDS.
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from batch import ledger, publish, runner
+from batch.assets import asset_id, collect
+from batch.orchestrator import main, run
+from batch.options import build_parser
+from batch.pipeline import Commands
+from batch.sharding import Shard, parse_shard, shard_from_environment, shard_of
+
+REPO = Path(__file__).resolve().parents[1]
+
+FAKE_BLENDER = '''#!{python}
+import json, os, signal, subprocess, sys, time
+from pathlib import Path
+argv = sys.argv[sys.argv.index("--") + 1:]
+stage, opts = argv[0], dict(zip(argv[1::2], argv[2::2]))
+work = Path(opts["--work"])
+if stage == "prepare":
+    name = Path(opts["--asset"]).name
+    if "hang" in name:
+        child = subprocess.Popen(["sleep", "300"])
+        Path(os.environ["FAKE_PIDS"]).open("a").write(f"{{child.pid}}\\n")
+        time.sleep(300)
+    if "crash" in name:
+        os.kill(os.getpid(), signal.SIGSEGV)
+    if "bad" in name:
+        (work / "error.json").write_text(json.dumps({{"reason": "zero faces"}}))
+        sys.exit(3)
+    if "flaky" in name:
+        marker = Path(os.environ["FAKE_PIDS"]).with_name("flaky-" + opts["--asset-id"])
+        if not marker.exists():
+            marker.touch()
+            os.kill(os.getpid(), signal.SIGSEGV)
+    print("fake stderr line", file=sys.stderr)
+    (work / "asset.json").write_text(json.dumps({{"type": int(opts["--type"]), "materials": [], "notes": ["n"]}}))
+else:
+    time.sleep(float(os.environ.get("RENDER_SECONDS", "0")))
+    (work / "rgb").mkdir()
+    (work / "rgb" / "0000.png").write_text(opts["--asset-id"] + opts["--resolution"])
+    (work / "render.json").write_text(json.dumps({{"frames": [], "timings_s": {{}}}}))
+'''
+
+FAKE_PYTHON = '''#!{python}
+import json, sys
+from pathlib import Path
+opts = dict(zip(sys.argv[2::2], sys.argv[3::2]))
+(Path(opts["--work"]) / "fit.json").write_text(json.dumps({{"materials": {{}}}}))
+'''
+
+
+@pytest.fixture
+def fakes(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Commands:
+    tools = tmp_path / "tools"
+    tools.mkdir()
+    for name, text in (("blender", FAKE_BLENDER), ("torch-python", FAKE_PYTHON)):
+        (tools / name).write_text(text.format(python=sys.executable))
+        (tools / name).chmod(0o755)
+    monkeypatch.setenv("FAKE_PIDS", str(tmp_path / "pids.txt"))
+    return Commands(str(tools / "blender"), str(tools / "torch-python"))
+
+
+@pytest.fixture
+def decoder(tmp_path: Path) -> Path:
+    folder = tmp_path / "decoder"
+    folder.mkdir()
+    (folder / "weights.safetensors").write_bytes(b"stand-in weights")
+    return folder
+
+
+def make_assets(folder: Path, names: list[str]) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        (folder / name).write_bytes(b"asset " + name.encode())
+    return folder
+
+
+def args_for(inp: Path, out: Path, decoder: Path, *extra: str):  # type: ignore[no-untyped-def]
+    return build_parser().parse_args(["--input", str(inp), "--output", str(out), "--decoder", str(decoder),
+                                      "--resolution", "8", *extra])
+
+
+def ledger_records(out: Path) -> list[dict]:
+    return [r for path in sorted((out / "_ledger").glob("*.jsonl")) for r in ledger.read(path)]
+
+
+# --- sharding ---------------------------------------------------------------------------------------
+
+def test_shards_partition_the_assets_and_do_not_move_when_the_list_grows() -> None:
+    ids = [asset_id(f"obj_{i}.glb") for i in range(400)]
+    owners = {i: [s for s in range(4) if Shard(s, 4).owns(i)] for i in ids}
+    assert all(len(o) == 1 for o in owners.values())
+    counts = [sum(o == [s] for o in owners.values()) for s in range(4)]
+    assert min(counts) > 60  # roughly even
+    more = ids + [asset_id(f"new_{i}.glb") for i in range(100)]
+    assert all(shard_of(i, 4) == owners[i][0] for i in more[:400])
+
+
+def test_shard_from_slurm_environment_and_argument() -> None:
+    assert shard_from_environment({"SLURM_ARRAY_TASK_ID": "3", "SLURM_ARRAY_TASK_COUNT": "8"}) == Shard(3, 8)
+    assert shard_from_environment({"SLURM_ARRAY_TASK_ID": "4", "SLURM_ARRAY_TASK_COUNT": "4",
+                                   "SLURM_ARRAY_TASK_MIN": "1"}) == Shard(3, 4)
+    assert shard_from_environment({}) is None
+    assert parse_shard("2/5") == Shard(2, 5)
+    for bad in ("5/5", "x", "1/0"):
+        with pytest.raises(ValueError):
+            parse_shard(bad)
+
+
+def test_slurm_variables_pick_the_shard(tmp_path: Path, fakes: Commands, decoder: Path,
+                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    inp = make_assets(tmp_path / "in", [f"a{i}.glb" for i in range(12)])
+    mine = [a.id for a in collect(inp) if shard_of(a.id, 3) == 1]
+    monkeypatch.setenv("SLURM_ARRAY_TASK_ID", "1")
+    monkeypatch.setenv("SLURM_ARRAY_TASK_COUNT", "3")
+    assert run(args_for(inp, tmp_path / "out", decoder), fakes) == 0
+    done = sorted(p.name for p in (tmp_path / "out").iterdir() if (p / "manifest.json").exists())
+    assert done == sorted(mine)
+    assert (tmp_path / "out" / "_ledger" / "shard-0001-of-0003.jsonl").is_file()
+
+
+# --- names ------------------------------------------------------------------------------------------
+
+def test_hostile_names_stay_inside_the_output_folder(tmp_path: Path) -> None:
+    for key in ("../../etc/passwd", "a b/ünï côde.glb", "..", "CON.glb", "x/\x00y.glb", "/abs/path.obj"):
+        folder = publish.final_dir(tmp_path, asset_id(key))
+        assert folder.resolve().parent == tmp_path.resolve() and folder.name not in ("", ".", "..")
+    assert asset_id("a/chair.glb") != asset_id("b/chair.glb")
+    with pytest.raises(ValueError):
+        publish.final_dir(tmp_path, "../escape")
+
+
+def test_list_file_with_parent_paths_and_spaces(tmp_path: Path, fakes: Commands, decoder: Path) -> None:
+    make_assets(tmp_path / "assets", ["with space.glb", "ünïcode.obj"])
+    listing = tmp_path / "lists" / "assets.txt"
+    listing.parent.mkdir()
+    listing.write_text("# comment\n../assets/with space.glb\n../assets/ünïcode.obj\n\n")
+    out = tmp_path / "out"
+    assert run(args_for(listing, out, decoder), fakes) == 0
+    names = sorted(p.name for p in out.iterdir() if not p.name.startswith("_"))
+    assert len(names) == 2 and all((out / n / "manifest.json").is_file() for n in names)
+    assert not list(tmp_path.glob("*.partial")) and not (tmp_path / "assets" / "out").exists()
+
+
+# --- ledger, publish --------------------------------------------------------------------------------
+
+def test_ledger_appends_and_skips_a_torn_last_line(tmp_path: Path) -> None:
+    path = tmp_path / "l" / "shard.jsonl"
+    book = ledger.Ledger(path)
+    book.append({"asset_id": "a", "status": "done"})
+    book.append({"asset_id": "b", "status": "failed"})
+    with path.open("a") as f:
+        f.write('{"asset_id": "c", "sta')  # a run killed mid-write
+    assert [r["asset_id"] for r in ledger.read(path)] == ["a", "b"]
+
+
+def test_publish_is_atomic_and_replaces_an_older_render(tmp_path: Path) -> None:
+    work = publish.fresh_partial(tmp_path, "asset-1")
+    (work / "a.txt").write_text("one")
+    assert not (tmp_path / "asset-1").exists()
+    final = publish.publish(tmp_path, "asset-1", {"settings_hash": "h1"})
+    assert publish.is_done(tmp_path, "asset-1", "h1") and not publish.is_done(tmp_path, "asset-1", "h2")
+    manifest = publish.read_manifest(final)
+    assert manifest["files"] == {"a.txt": publish.file_hashes(final)["a.txt"]}
+    work = publish.fresh_partial(tmp_path, "asset-1")
+    (work / "b.txt").write_text("two")
+    publish.publish(tmp_path, "asset-1", {"settings_hash": "h2"})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["asset-1"]
+    assert sorted(p.name for p in final.iterdir()) == ["b.txt", "manifest.json"]
+
+
+# --- child processes --------------------------------------------------------------------------------
+
+def test_timeout_kills_the_whole_process_group(tmp_path: Path) -> None:
+    script = "import subprocess, sys, time; p = subprocess.Popen(['sleep', '300']); print(p.pid, flush=True); time.sleep(300)"
+    start = time.monotonic()
+    out = runner.run([sys.executable, "-c", script], 1.0, tmp_path / "logs" / "x")
+    assert out.timed_out and not out.ok and time.monotonic() - start < 10
+    grandchild = int((tmp_path / "logs" / "x.out").read_text().split()[0])
+    time.sleep(0.2)
+    assert not _alive(grandchild)
+
+
+def test_segfault_is_recorded_with_signal_and_stderr(tmp_path: Path) -> None:
+    script = "import os, signal, sys; print('about to crash', file=sys.stderr, flush=True); os.kill(os.getpid(), signal.SIGSEGV)"
+    out = runner.run([sys.executable, "-c", script], 30, tmp_path / "crash")
+    assert out.signal == "SIGSEGV" and out.exit_code is None and "about to crash" in out.stderr_tail
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().split()[2] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def test_bad_hanging_and_crashing_assets_do_not_stop_the_batch(tmp_path: Path, fakes: Commands,
+                                                               decoder: Path) -> None:
+    inp = make_assets(tmp_path / "in", ["good.glb", "hang.glb", "crash.glb", "bad.glb", "flaky.glb",
+                                        "notes.txt.xyz", "sub/good2.obj"])
+    out = tmp_path / "out"
+    code = run(args_for(inp, out, decoder, "--timeout", "3", "--retries", "1", "--workers", "2"), fakes)
+    assert code == 1
+    by_source = {r["source"]: r for r in ledger_records(out)}
+    assert by_source["good.glb"]["status"] == by_source["sub/good2.obj"]["status"] == "done"
+    assert by_source["flaky.glb"]["status"] == "done" and by_source["flaky.glb"]["attempts"] == 2
+    hang, crash, bad = by_source["hang.glb"], by_source["crash.glb"], by_source["bad.glb"]
+    assert hang["status"] == "failed" and "timed out" in hang["reason"] and hang["attempts"] == 2
+    assert crash["signal"] == "SIGSEGV" and "SIGSEGV" in crash["reason"] and crash["attempts"] == 2
+    assert bad["reason"] == "prepare: zero faces" and bad["attempts"] == 1 and bad["exit_code"] == 3
+    assert "unsupported format" in by_source["notes.txt.xyz"]["reason"]
+    assert by_source["good.glb"]["notes"] == ["n"]
+    for pid in map(int, (tmp_path / "pids.txt").read_text().split()):
+        assert not _alive(pid)  # the hanging asset's grandchildren died with it
+    assert not list(out.glob("*.partial"))
+    assert (out / "_logs").is_dir()  # failed assets keep their child logs
+    published = [p for p in out.iterdir() if not p.name.startswith("_")]
+    assert len(published) == 3 and all((p / "manifest.json").is_file() for p in published)
+
+
+def test_resume_skips_finished_assets_unless_settings_change(tmp_path: Path, fakes: Commands,
+                                                             decoder: Path) -> None:
+    inp = make_assets(tmp_path / "in", ["a.glb", "b.glb"])
+    out = tmp_path / "out"
+    assert run(args_for(inp, out, decoder), fakes) == 0
+    first = {p.name: publish.read_manifest(p)["files"] for p in out.iterdir() if not p.name.startswith("_")}
+    assert run(args_for(inp, out, decoder), fakes) == 0
+    assert [r["status"] for r in ledger_records(out)][-2:] == ["skipped", "skipped"]
+    assert run(args_for(inp, out, decoder, "--resolution", "16"), fakes) == 0
+    assert [r["status"] for r in ledger_records(out)][-2:] == ["done", "done"]
+    again = {p.name: publish.read_manifest(p)["files"] for p in out.iterdir() if not p.name.startswith("_")}
+    assert again.keys() == first.keys() and again != first
+
+
+@pytest.mark.parametrize("kill", [signal.SIGTERM, signal.SIGKILL])
+def test_killed_run_restarts_to_identical_results(tmp_path: Path, fakes: Commands, decoder: Path,
+                                                  kill: signal.Signals) -> None:
+    names = [f"asset{i}.glb" for i in range(6)]
+    inp = make_assets(tmp_path / "in", names)
+    cmd = [sys.executable, str(REPO / "batch" / "render_dataset.py"), "--input", str(inp), "--decoder",
+           str(decoder), "--resolution", "8", "--workers", "2", "--blender", fakes.blender, "--python", fakes.python]
+    env = dict(os.environ, RENDER_SECONDS="0.6")
+    reference = tmp_path / "reference"
+    subprocess.run([*cmd, "--output", str(reference)], env=env, check=True, capture_output=True, timeout=120)
+
+    out = tmp_path / "out"
+    proc = subprocess.Popen([*cmd, "--output", str(out)], env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    while not any((p / "manifest.json").exists() for p in out.glob("asset*")) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.3)
+    proc.send_signal(kill)
+    proc.wait(timeout=30)
+    finished = {p.name for p in out.iterdir() if (p / "manifest.json").exists()}
+    assert 0 < len(finished) < len(names)
+    for folder in out.iterdir():  # nothing half-written is visible: only complete folders, .partial or bookkeeping
+        assert folder.name.startswith("_") or folder.name.endswith(".partial") or folder.name in finished
+    time.sleep(1.0)  # children killed with the run must not write any more
+    subprocess.run([*cmd, "--output", str(out)], env=env, check=True, capture_output=True, timeout=120)
+    statuses = [r["status"] for r in ledger_records(out)]
+    assert statuses.count("skipped") >= len(finished)
+
+    def content(root: Path) -> dict[str, dict[str, str]]:
+        return {p.name: {k: v for k, v in publish.read_manifest(p)["files"].items() if not k.startswith("logs/")}
+                for p in root.iterdir() if not p.name.startswith("_")}
+
+    assert content(out) == content(reference)
+    assert not list(out.glob("*.partial"))
+
+
+def test_help_documents_every_option_with_its_default() -> None:
+    text = subprocess.run([sys.executable, str(REPO / "batch" / "render_dataset.py"), "--help"],
+                          capture_output=True, text=True, check=True).stdout
+    for option in ("--input", "--output", "--frames", "--resolution", "--samples", "--probe", "--shard",
+                   "--workers", "--timeout", "--seed", "--decoder", "--retries"):
+        assert option in text
+    assert "(default: 16)" in text and "(default: 512)" in text
+
+
+def test_missing_decoder_is_a_clear_usage_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["--input", str(tmp_path), "--output", str(tmp_path / "o"), "--decoder", str(tmp_path / "none")])
+    assert "no weights.safetensors" in capsys.readouterr().err
