@@ -109,7 +109,8 @@ def procedural_asset(folder, size=64, name="painted"):
     return obj
 
 def render(size=32, samples=8):
-    """A tiny CPU render with one point light; (H, W, 3) linear float."""
+    """A tiny CPU render with one area light; (H, W, 3) linear float."""
+    scene = bpy.context.scene
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
     scene.cycles.samples = samples

@@ -9,8 +9,10 @@ Supported layouts of each of Base Color, Roughness and Metallic:
 Anything else (noise, ramps, vertex colours...) is a procedural input: the
 enhancement needs per-texel values, so the user must bake it to an image first.
 
-Pixels come through ``Image.pixels.foreach_get`` (one C call per image, no
-per-pixel Python); byte images in sRGB are linearised here, as Cycles would.
+Pixels come from the image file through OpenImageIO (Blender's bundled copy),
+or through ``Image.pixels.foreach_get`` for packed and generated images: whole
+arrays, no per-pixel Python. Images tagged sRGB are linearised here, as Cycles
+would; other colour spaces are read as stored (linear or data).
 """
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ import bpy
 import numpy as np
 
 from ..core.maps import ParamMap, PbrInputs
+from .osl_env import prefer_blender_bundled_modules
 
 INPUTS = ("Base Color", "Roughness", "Metallic")
 _CHANNELS = {"Red": 0, "Green": 1, "Blue": 2}
@@ -179,7 +182,11 @@ def check_image(material: bpy.types.Material, node: bpy.types.ShaderNodeTexImage
         if not os.path.isfile(path):
             raise InputProblem(f"{where}: the file of image {image.name!r} is missing ({path}); "
                                "relink it (File > External Data > Find Missing Files)")
-    if image.size[0] == 0 or image.size[1] == 0:
+    path = _file_of(image)
+    reader = _open_file(path) if path else None
+    if reader is not None:  # the header is enough: no decode before the real read
+        reader.close()
+    elif image.size[0] == 0 or image.size[1] == 0:
         raise InputProblem(f"{where}: image {image.name!r} cannot be read "
                            f"({bpy.path.abspath(image.filepath) or 'no file'}); replace the file")
 
@@ -188,24 +195,80 @@ def _srgb_to_linear(x: np.ndarray) -> np.ndarray:
     return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
+def _file_of(image: bpy.types.Image) -> str | None:
+    """The image's file when Blender would read it from disk (not packed, not generated)."""
+    if image.source != "FILE" or image.packed_file is not None:
+        return None
+    path = bpy.path.abspath(image.filepath, library=image.library)
+    return path if os.path.isfile(path) else None
+
+
+def _open_file(path: str):
+    """An OpenImageIO reader for the file, or None (then Blender's own reader is used)."""
+    try:
+        prefer_blender_bundled_modules()
+        import OpenImageIO as oiio
+    except (ImportError, RuntimeError):  # another OpenImageIO was imported first
+        return None
+    return oiio.ImageInput.open(path)
+
+
+def _read_with_oiio(path: str, max_size: int | None) -> np.ndarray | None:
+    """(H, W, C) float32 of the file's stored values, every k-th texel; None if it cannot be read.
+
+    Reading the file directly is 4-5x faster than Blender's decode plus
+    ``foreach_get`` (67 million floats for a 4K RGBA image).
+    """
+    inp = _open_file(path)
+    if inp is None:
+        return None
+    import OpenImageIO as oiio
+
+    spec = inp.spec()
+    byte = spec.format == oiio.TypeDesc("uint8")
+    data = inp.read_image(oiio.UINT8 if byte else oiio.FLOAT)
+    inp.close()
+    if data is None:
+        return None
+    data = np.asarray(data).reshape(spec.height, spec.width, spec.nchannels)
+    step = _step(spec.width, spec.height, max_size)
+    data = data[::step, ::step]
+    return data.astype(np.float32) / 255.0 if byte else np.ascontiguousarray(data, np.float32)
+
+
+def _step(w: int, h: int, max_size: int | None) -> int:
+    step = 1
+    while max_size and max(w, h) // step > max_size:
+        step *= 2
+    return step
+
+
+def _read_with_blender(image: bpy.types.Image, max_size: int | None) -> np.ndarray:
+    """Packed or generated images: Blender's pixels, bottom row first, every k-th texel."""
+    w, h = image.size
+    flat = np.empty(w * h * image.channels, np.float32)
+    image.pixels.foreach_get(flat)
+    step = _step(w, h, max_size)
+    return flat.reshape(h, w, image.channels)[::-1][::step, ::step]
+
+
 def image_pixels(image: bpy.types.Image, max_size: int | None = None) -> np.ndarray:
     """(H, W, 4) float32, top row first (numpy convention), linear where the image is sRGB.
 
     ``max_size`` keeps every k-th texel (k a power of two) so the longer side fits.
     """
-    w, h = image.size
-    flat = np.empty(w * h * image.channels, np.float32)
-    image.pixels.foreach_get(flat)
-    px = flat.reshape(h, w, image.channels)[::-1]  # Blender stores the bottom row first
-    if max_size:
-        step = 1
-        while max(w, h) // step > max_size:
-            step *= 2
-        px = px[::step, ::step]
-    if image.channels < 4:
-        px = np.concatenate([px, np.ones((*px.shape[:2], 4 - image.channels), np.float32)], 2)
-    px = np.ascontiguousarray(px)
-    if image.colorspace_settings.name == "sRGB" and not image.is_float:
+    path = _file_of(image)
+    px = _read_with_oiio(path, max_size) if path else None
+    if px is None:
+        px = _read_with_blender(image, max_size)
+    if px.shape[2] == 1:  # grey
+        px = np.repeat(px, 3, axis=2)
+    elif px.shape[2] == 2:  # grey + alpha
+        px = np.concatenate([np.repeat(px[..., :1], 3, axis=2), px[..., 1:]], axis=2)
+    if px.shape[2] == 3:
+        px = np.concatenate([px, np.ones((*px.shape[:2], 1), np.float32)], 2)
+    px = np.ascontiguousarray(px[..., :4], np.float32)
+    if image.colorspace_settings.name == "sRGB":
         px[..., :3] = _srgb_to_linear(px[..., :3])
     return px
 

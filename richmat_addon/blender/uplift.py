@@ -24,7 +24,7 @@ from . import cycles_builder, mesh_maps
 from .pbr_source import InputProblem, PbrSources, load_pbr, read_sources
 
 DUST_TYPES = frozenset({1, 3})
-PREVIEW_SIZE = 1024  # longest side of the parameter maps uplift makes (bake: full size)
+PREVIEW_SIZE = 512  # longest side of the maps uplift makes (interactive); Bake writes full size
 SUFFIX = " (richmat)"
 _KEEP_FRAME = "richmat_frame_original"
 
@@ -80,7 +80,9 @@ def plan(obj: bpy.types.Object, all_slots: bool) -> list[SlotPlan]:
 def enhance_slot(p: SlotPlan, requested: str, seed: int, max_size: int | None) -> EnhancedMaterial:
     """The enhanced maps of one slot; dust types get world maps rasterised from the mesh."""
     pbr = load_pbr(p.sources, max_size)
-    type_, _ = resolve_type(pbr, "auto" if requested == "AUTO" else int(requested), seed)
+    type_, note = resolve_type(pbr, "auto" if requested == "AUTO" else int(requested), seed)
+    if requested != "AUTO" and type_ != int(requested):
+        raise InputProblem(f"{note}; choose a type in 0-3 or Auto for metals")
     normals = positions = None
     size = _texture_size(pbr)
     if type_ in DUST_TYPES and size is not None and mesh_maps.has_uvs(p.obj):
@@ -225,12 +227,7 @@ def uplift(obj: bpy.types.Object, all_slots: bool, requested: str, seed: int,
     Every slot is checked and enhanced before the first datablock is created, so
     bad input anywhere changes nothing.
     """
-    work = []
-    for p in plan(obj, all_slots):
-        try:
-            work.append((p, enhance_slot(p, requested, seed, max_size)))
-        except ValueError as exc:  # a dielectric-only type asked for on a metal
-            raise InputProblem(str(exc)) from None
+    work = [(p, enhance_slot(p, requested, seed, max_size)) for p in plan(obj, all_slots)]
     lines = []
     for p, mat in work:
         textures = {name: preview_image(f"richmat {p.original.name} {name}", pmap)

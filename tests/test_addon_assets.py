@@ -1,0 +1,56 @@
+"""Uplift -> Bake -> Export on the real sample assets (skipped when ../shared/assets is absent)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
+
+ASSETS = ("WaterBottle", "CesiumMilkTruck", "FlightHelmet")
+
+PIPELINE = r'''
+bpy.ops.import_scene.gltf(filepath=ASSET)
+scene = bpy.context.scene
+scene.richmat.output_dir = OUT
+meshes = [o for o in scene.objects if o.type == "MESH"]
+originals = sorted({s.material.name for o in meshes for s in o.material_slots if s.material})
+before = render(48, 8)
+timings = {}
+for obj in meshes:
+    bpy.context.view_layer.objects.active = obj
+    t = time.perf_counter()
+    res, err = run_op("uplift_material")
+    timings[obj.name] = time.perf_counter() - t
+    assert res == {"FINISHED"}, (obj.name, err)
+after = render(48, 8)
+for obj in meshes:
+    bpy.context.view_layer.objects.active = obj
+    res, err = run_op("bake_parameters")
+    assert res == {"FINISHED"}, (obj.name, err)
+bpy.context.view_layer.objects.active = meshes[0]
+res, err = run_op("export_materialx", directory=OUT + "_mtlx")
+assert res == {"FINISHED"}, err
+used = sorted({s.material.name for o in meshes for s in o.material_slots if s.material})
+print("RESULT " + json.dumps(dict(
+    originals=originals, used=used, uplift_s=timings,
+    before=float(before.mean()), after=float(after.mean()), finite=bool(np.isfinite(after).all()),
+    folders=sorted(p.name for p in Path(OUT).iterdir()))))
+'''
+
+
+@pytest.mark.parametrize("asset", ASSETS)
+def test_uplift_bake_export_on_a_real_asset(asset: str, shared_assets: Path, blender_run,
+                                            extension_zip: Path, tmp_path: Path):  # noqa: F811
+    path = shared_assets / "models" / f"{asset}.glb"
+    if not path.is_file():
+        pytest.skip(f"{path} is not there")
+    out = tmp_path / "baked"
+    result = blender_run(script(f"ASSET = {str(path)!r}\nOUT = {str(out)!r}\n" + PIPELINE, extension_zip),
+                         timeout=600)
+    assert result["used"] == [f"{name} (richmat)" for name in result["originals"]]
+    assert result["finite"] and result["after"] != pytest.approx(result["before"], rel=1e-3)
+    assert len(result["folders"]) == len(result["originals"])  # one folder per material, none shared
+    for folder in result["folders"]:
+        assert (out / folder / "params.json").is_file() and (out / folder / "material.mtlx").is_file()
+    assert max(result["uplift_s"].values()) < 2.0, result["uplift_s"]

@@ -1,0 +1,161 @@
+"""Uplift's input handling: every bad input is one clear report and changes nothing; 4K stays fast."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
+
+BAD_INPUTS = r'''
+def snapshot():
+    return (len(bpy.data.materials), len(bpy.data.images), len(bpy.data.texts),
+            [s.material.name if s.material else None for s in bpy.context.active_object.material_slots])
+
+def refused(setup):
+    """Run uplift on the object setup() prepares; the error text, and whether nothing changed."""
+    bpy.ops.wm.read_homefile(use_empty=True)
+    setup()
+    before = snapshot()
+    res, err = run_op("uplift_material")
+    assert res == {"CANCELLED"}, (setup.__name__, res)
+    return err, snapshot() == before
+
+def with_node(kind, socket="Base Color", configure=lambda node: None):
+    def setup():
+        obj = procedural_asset(TMP)
+        tree = obj.active_material.node_tree
+        node = tree.nodes.new(kind)
+        configure(node)
+        tree.links.new(node.outputs[0], tree.nodes["Principled BSDF"].inputs[socket])
+    setup.__name__ = kind
+    return setup
+
+def no_principled():
+    obj = procedural_asset(TMP)
+    tree = obj.active_material.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    tree.links.new(diffuse.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+
+def image_from(path):
+    """An image datablock pointing at a file, as a .blend saved elsewhere would hold it."""
+    def configure(node):
+        node.image = bpy.data.images.new(Path(path).stem, 8, 8)
+        node.image.source = "FILE"
+        node.image.filepath = path
+    return configure
+
+def udim(node):
+    node.image = bpy.data.images.new("tiles", 32, 32, tiled=True)
+
+def no_uvs():
+    obj = procedural_asset(TMP)
+    while obj.data.uv_layers:
+        obj.data.uv_layers.remove(obj.data.uv_layers[0])
+
+def linked_material():
+    lib = Path(TMP) / "library.blend"
+    if not lib.exists():
+        mat = bpy.data.materials.new("libmat")
+        bpy.data.libraries.write(str(lib), {mat})
+        bpy.data.materials.remove(mat)
+    obj = procedural_asset(TMP)
+    with bpy.data.libraries.load(str(lib), link=True) as (src, dst):
+        dst.materials = ["libmat"]
+    obj.material_slots[0].material = dst.materials[0]
+
+def metal_type4():
+    obj = procedural_asset(TMP)
+    p = obj.active_material.node_tree.nodes["Principled BSDF"]
+    obj.active_material.node_tree.links.remove(p.inputs["Metallic"].links[0])
+    p.inputs["Metallic"].default_value = 1.0
+    bpy.context.scene.richmat.enhancement_type = "4"
+
+garbage = Path(TMP) / "garbage.png"
+garbage.write_bytes(b"not an image at all")
+cases = dict(
+    no_principled=no_principled,
+    procedural=with_node("ShaderNodeTexNoise"),
+    procedural_roughness=with_node("ShaderNodeValToRGB", "Roughness"),
+    missing=with_node("ShaderNodeTexImage", configure=image_from(str(Path(TMP) / "gone.png"))),
+    unreadable=with_node("ShaderNodeTexImage", configure=image_from(str(garbage))),
+    udim=with_node("ShaderNodeTexImage", configure=udim),
+    no_uvs=no_uvs,
+    linked=linked_material,
+    metal_type4=metal_type4,
+)
+out = {name: refused(setup) for name, setup in cases.items()}
+
+# The fixes the reports name work: unwrap with xatlas, then uplift succeeds.
+bpy.ops.wm.read_homefile(use_empty=True)
+no_uvs()
+unwrap = run_op("unwrap_uvs")
+uplift_after_unwrap = run_op("uplift_material")
+
+# Poll: no mesh selected greys every button out.
+bpy.ops.wm.read_homefile(use_empty=True)
+bpy.ops.object.empty_add()
+polls = {name: getattr(bpy.ops.richmat, name).poll() for name in
+         ("uplift_material", "bake_parameters", "fit_neural", "export_materialx", "switch_material")}
+print("RESULT " + json.dumps(dict(cases=out, unwrap=[list(unwrap[0]), unwrap[1]],
+                                  uplift_after_unwrap=[list(uplift_after_unwrap[0]), uplift_after_unwrap[1]],
+                                  polls=polls)))
+'''
+
+EXPECTED = {
+    "no_principled": "no Principled BSDF",
+    "procedural": "procedural node",
+    "procedural_roughness": "bake it to an image texture first",
+    "missing": "is missing",
+    "unreadable": "cannot be read",
+    "udim": "UDIM",
+    "no_uvs": "no UV map",
+    "linked": "linked from",
+    "metal_type4": "dielectrics",
+}
+
+
+def test_every_bad_input_is_reported_and_changes_nothing(blender_run, extension_zip: Path,  # noqa: F811
+                                                         tmp_path: Path):
+    result = blender_run(script(f"TMP = {str(tmp_path)!r}\n" + BAD_INPUTS, extension_zip))
+    for name, (message, unchanged) in result["cases"].items():
+        assert message and EXPECTED[name] in message, (name, message)
+        assert unchanged, name
+    assert result["unwrap"][0] == ["FINISHED"], result["unwrap"]
+    assert result["uplift_after_unwrap"][0] == ["FINISHED"], result["uplift_after_unwrap"]
+    assert not any(result["polls"].values()), result["polls"]
+
+
+def _gradient_png(path: Path, size: int, channels: tuple[float, float, float]) -> None:
+    ramp = np.linspace(0.0, 1.0, size, dtype=np.float32)
+    img = np.stack([c * (0.5 + 0.5 * ramp[None, :] * ramp[:, None]) for c in channels], -1)
+    Image.fromarray((img * 255).astype(np.uint8)).save(path, compress_level=1)
+
+
+def test_uplift_of_a_4k_material_takes_under_two_seconds(blender_run, extension_zip: Path,  # noqa: F811
+                                                         tmp_path: Path):
+    _gradient_png(tmp_path / "base4k.png", 4096, (0.8, 0.4, 0.2))
+    _gradient_png(tmp_path / "orm4k.png", 4096, (1.0, 0.7, 0.3))
+    result = blender_run(script(f'''
+obj = procedural_asset({str(tmp_path)!r})
+tree = obj.active_material.node_tree
+for node in tree.nodes:
+    if node.bl_idname == "ShaderNodeTexImage" and node.image.name.startswith("base"):
+        node.image = bpy.data.images.load({str(tmp_path / "base4k.png")!r})
+    elif node.bl_idname == "ShaderNodeTexImage" and node.image.name.startswith("orm"):
+        node.image = bpy.data.images.load({str(tmp_path / "orm4k.png")!r})
+        node.image.colorspace_settings.name = "Non-Color"
+scene.richmat.enhancement_type = "3"  # dust + coat: masks and the mesh rasterised too
+t = time.perf_counter()
+res, err = run_op("uplift_material")
+seconds = time.perf_counter() - t
+assert res == {{"FINISHED"}}, err
+sizes = sorted({{tuple(n.image.size) for n in obj.active_material.node_tree.nodes
+                 if n.bl_idname == "ShaderNodeTexImage" and n.name.startswith("tex_")}})
+print("RESULT " + json.dumps(dict(seconds=seconds, sizes=sizes)))
+''', extension_zip))
+    assert result["sizes"] == [[512, 512]]  # preview maps; Bake writes the full 4K
+    assert result["seconds"] < 2.0, result
