@@ -1,7 +1,9 @@
 """A fitted neural material as a renderer BSDF: f = s f_neu + T(wi) c / pi.
 
 f_neu and T come from the frozen decoder at the point's latent (s is the
-material's energy scale, 1 unless the furnace repaired it). Sampling mixes the
+material's energy scale, 1 unless the furnace repaired it). Optional glints
+(``glints.py``) multiply f_neu per shading point and per RGB channel; sampling
+ignores them, which keeps the estimator unbiased. Sampling mixes the
 sampling decoder (for f_neu) with a cosine lobe (for the diffuse base) in
 proportion to R(wi) and T(wi) lum(c), the same split the analytic model makes.
 """
@@ -13,13 +15,15 @@ import torch
 from torch import Tensor
 
 from ..brdf.model import luminance
+from .glints import Glints
 from .weights import NeuralModel
 
 
 class NeuralBsdf:
-    def __init__(self, model: NeuralModel, latent: Tensor, base_color: Tensor, energy_scale: float | Tensor = 1.0):
+    def __init__(self, model: NeuralModel, latent: Tensor, base_color: Tensor, energy_scale: float | Tensor = 1.0,
+                 glints: Glints | None = None):
         self.model, self.latent, self.base_color = model, latent, base_color
-        self.energy_scale = energy_scale
+        self.energy_scale, self.glints = energy_scale, glints
 
     def _z(self, n: int) -> Tensor:
         return self.latent.expand(n, -1) if self.latent.shape[0] == 1 else self.latent
@@ -34,6 +38,8 @@ class NeuralBsdf:
     def eval(self, wi: Tensor, wo: Tensor) -> Tensor:
         f, t, _ = self.model.decoder(self._z(len(wi)), wi, wo)
         cos_o = wo[:, 2:3].clamp(min=0.0) * (wi[:, 2:3] > 0)
+        if self.glints is not None:
+            f = f * self.glints(wi, wo)
         return self.energy_scale * f + t * self.base_color * cos_o / math.pi
 
     def pdf(self, wi: Tensor, wo: Tensor) -> Tensor:
