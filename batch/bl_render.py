@@ -1,11 +1,12 @@
 """Blender side, render: the dataset's camera orbit, light, Cycles settings and outputs.
 
-One render pass per frame gives everything: the beauty (AgX, PNG) through the
-scene output, and through the compositor's File Output node one multilayer
-EXR holding world normals and positions (Cycles passes) and the AOVs
-``basecolor``, ``latent_a``, ``latent_b`` and ``coverage``, which each
-material writes with Shader AOV Output nodes. AOVs are neither tone-mapped
-nor denoised; the EXR holds scene values.
+Two passes over the orbit. The beauty pass path traces the enhanced OSL
+materials (AgX, PNG through the scene output). The intrinsics pass shades with
+SVM, because Cycles writes no AOVs under OSL: a few samples, no bounces, no
+denoising, and through the compositor's File Output node one multilayer EXR
+per frame with world normals and positions (Cycles passes) and the AOVs
+``basecolor``, ``latent_a``, ``latent_b`` and ``coverage``. AOVs are neither
+tone-mapped nor denoised; the EXR holds scene values.
 """
 from __future__ import annotations
 
@@ -98,6 +99,17 @@ def orbit(scene: bpy.types.Scene, frames: int, azimuth0: float) -> bpy.types.Obj
         cam.keyframe_insert("rotation_euler", frame=i)
     scene.frame_start, scene.frame_end = 0, frames - 1
     return cam
+
+
+def intrinsics_pass(scene: bpy.types.Scene, samples: int) -> None:
+    """Switch the scene to the cheap SVM pass: AOVs and geometry passes only need primary rays."""
+    cy = scene.cycles
+    cy.shading_system = False
+    cy.samples = samples
+    cy.use_adaptive_sampling = False
+    cy.use_denoising = False
+    cy.max_bounces = 0
+    scene.render.use_persistent_data = False  # kept data from the beauty pass would keep its film setup
 
 
 def add_aovs(view_layer: bpy.types.ViewLayer) -> None:

@@ -27,6 +27,7 @@ def _import_blend(path: Path) -> None:
     for obj in target.objects:
         if obj is not None:
             bpy.context.scene.collection.objects.link(obj)
+    bpy.context.view_layer.update()  # evaluates drivers (blocked): autoexec_fail then says whether any tried
 
 
 IMPORTERS: dict[str, Callable[[Path], Any]] = {

@@ -3,8 +3,8 @@
 ``prepare``: import, check, unwrap, normalise, enhance every material into
 ``materials/<name>/``, save ``scene.blend`` and ``asset.json``.
 ``render``: open ``scene.blend`` (scripts off), give every material its
-enhanced Cycles shader plus the dataset AOVs, render the orbit (PNG beauty +
-multilayer EXR intrinsics per frame), encode the MP4, write ``cameras.json``
+enhanced Cycles shader, render the orbit's beauty (PNG), then the intrinsics
+pass (multilayer EXR per frame, see ``bl_render``), encode the MP4, write ``cameras.json``
 and ``render.json``.
 A bad asset ends in ``error.json`` and exit code 3; anything else that goes
 wrong is a crash the orchestrator records with its stderr.
@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -83,23 +84,34 @@ def render(args: argparse.Namespace) -> None:
     scene = bpy.context.scene
     timings: dict[str, float] = {}
     start = time.monotonic()
-    replacements = {m["name"]: dataset_material.build(args.work / "materials" / m["folder"])
-                    for m in prepared["materials"]}
-    for obj in scene.objects:
-        for slot in getattr(obj, "material_slots", []):
-            if slot.material is not None and slot.material.name in replacements:
-                slot.material = replacements[slot.material.name]
+    built = {m["name"]: dataset_material.build(args.work / "materials" / m["folder"])
+             for m in prepared["materials"]}
+    slots = [s for o in scene.objects for s in getattr(o, "material_slots", [])
+             if s.material is not None and s.material.name in built]
+    originals = [s.material.name for s in slots]
     timings["materials"] = round(time.monotonic() - start, 3)
 
     bl_render.configure_cycles(scene, args.resolution, args.samples, args.adaptive_threshold, args.threads)
     scene.world = bl_render.probe_world(args.probe)
     cam = bl_render.orbit(scene, args.frames, bl_render.start_azimuth(args.asset_id, args.seed))
-    bl_render.add_aovs(scene.view_layers[0])
-    bl_render.compositor_outputs(scene, args.work / "passes")
+    for slot, name in zip(slots, originals):
+        slot.material = built[name][0]
     bl_render.beauty_output(scene, args.work / "rgb")
     start = time.monotonic()
     bpy.ops.render.render(animation=True, scene=scene.name)
-    timings["frames"] = round(time.monotonic() - start, 3)
+    timings["beauty"] = round(time.monotonic() - start, 3)
+
+    for slot, name in zip(slots, originals):
+        slot.material = built[name][1]
+    bl_render.intrinsics_pass(scene, args.aov_samples)
+    bl_render.add_aovs(scene.view_layers[0])
+    bl_render.compositor_outputs(scene, args.work / "passes")
+    scratch = args.work / "scratch"
+    bl_render.beauty_output(scene, scratch)  # this pass's own beauty is not wanted
+    start = time.monotonic()
+    bpy.ops.render.render(animation=True, scene=scene.name)
+    timings["intrinsics"] = round(time.monotonic() - start, 3)
+    shutil.rmtree(scratch)
     cameras = bl_render.camera_record(scene, cam, args.frames)
     (args.work / "cameras.json").write_text(json.dumps(cameras, indent=1))
     start = time.monotonic()
@@ -123,6 +135,7 @@ def parse(argv: list[str]) -> argparse.Namespace:
     r.add_argument("--samples", type=int, required=True)
     r.add_argument("--adaptive-threshold", type=float, required=True)
     r.add_argument("--probe", type=Path, required=True)
+    r.add_argument("--aov-samples", type=int, required=True)
     r.add_argument("--threads", type=int, default=1)
     for stage in (p, r):
         stage.add_argument("--work", type=Path, required=True)

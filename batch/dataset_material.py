@@ -1,9 +1,11 @@
-"""Blender side: a prepared material as its enhanced Cycles shader plus the dataset's AOV outputs.
+"""Blender side: a prepared material as two Cycles materials, one per render pass.
 
-The shader is ``richmat_addon.blender.cycles_builder``'s OSL graph; next to it
-this adds Shader AOV Output nodes for the base colour (the material's own input,
-not Cycles' diffuse colour, which is wrong for metals), both latent textures
-(Non-Color, so never transformed) and a coverage value of 1.
+The beauty material is ``richmat_addon.blender.cycles_builder``'s OSL graph.
+Cycles does not write Shader AOV outputs when it shades with OSL (checked on
+bpy 5.0.1: every AOV reads 0), so the intrinsic maps come from a second,
+cheap SVM pass whose material has only AOV outputs: the base colour (the
+material's own input, not Cycles' diffuse colour, which is wrong for metals),
+both latent textures (Non-Color, never transformed) and a coverage value of 1.
 """
 from __future__ import annotations
 
@@ -30,10 +32,15 @@ def _texture(tree: bpy.types.NodeTree, path: str, colour: bool) -> bpy.types.Nod
     return node
 
 
-def build(folder: Path) -> bpy.types.Material:
+def build(folder: Path) -> tuple[bpy.types.Material, bpy.types.Material]:
+    """(beauty material, intrinsics material) of one prepared material folder."""
     mat, paths, record = material_folder.load(folder)
-    material = build_material(mat, paths, name=f"richmat_{record['material']}")
+    beauty = build_material(mat, paths, name=f"richmat_{record['material']}")
+    material = bpy.data.materials.new(f"richmat_aov_{record['material']}")
     tree = material.node_tree
+    tree.nodes.clear()
+    surface = tree.nodes.new("ShaderNodeBsdfDiffuse")  # opaque: without a surface Cycles sees through it
+    tree.links.new(surface.outputs["BSDF"], tree.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
     base = _aov(tree, "basecolor")
     if "base_color" in paths:
         tree.links.new(_texture(tree, paths["base_color"], colour=True).outputs["Color"], base.inputs["Color"])
@@ -44,7 +51,10 @@ def build(folder: Path) -> bpy.types.Material:
         node = _aov(tree, name)
         if files is not None:
             tree.links.new(_texture(tree, files[i], colour=False).outputs["Color"], node.inputs["Color"])
-        else:
-            node.inputs["Color"].default_value = (*values[3 * i:3 * i + 3], 1.0)
+        else:  # a colour socket's own value cannot be negative; latents can
+            xyz = tree.nodes.new("ShaderNodeCombineXYZ")
+            for axis, value in zip("XYZ", values[3 * i:3 * i + 3]):
+                xyz.inputs[axis].default_value = value
+            tree.links.new(xyz.outputs["Vector"], node.inputs["Color"])
     _aov(tree, "coverage").inputs["Value"].default_value = 1.0
-    return material
+    return beauty, material

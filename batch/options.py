@@ -36,6 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
     add("--samples", type=int, default=32, help="Cycles samples per pixel (adaptive, denoised; "
                                                 "default chosen in docs/render_speed.json)")
     add("--adaptive-threshold", type=float, default=0.05, help="Cycles adaptive sampling noise threshold")
+    add("--aov-samples", type=int, default=8, help="samples of the intrinsics pass (anti-aliasing of the EXR maps)")
     add("--probe", type=Path, default=DEFAULT_PROBE, help="HDR light probe (equirectangular)")
     add("--decoder", type=Path, default=DEFAULT_DECODER, help="trained decoder folder "
                                                              "(weights.safetensors + state.json)")
@@ -63,6 +64,7 @@ class Settings:
     resolution: int
     samples: int
     adaptive_threshold: float
+    aov_samples: int
     probe_sha256: str
     decoder_sha256: str
     fit_steps: int
@@ -82,7 +84,7 @@ def file_sha256(path: Path) -> str:
 
 
 def validate(args: argparse.Namespace) -> None:
-    for name in ("frames", "resolution", "samples", "workers", "fit_steps", "max_texture"):
+    for name in ("frames", "resolution", "samples", "aov_samples", "workers", "fit_steps", "max_texture"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name.replace('_', '-')} must be at least 1")
     if args.timeout <= 0 or args.retries < 0:
@@ -96,7 +98,7 @@ def validate(args: argparse.Namespace) -> None:
 
 def settings_of(args: argparse.Namespace) -> Settings:
     return Settings(PIPELINE_VERSION, args.frames, args.resolution, args.samples, args.adaptive_threshold,
-                    file_sha256(args.probe), file_sha256(args.decoder / "weights.safetensors"),
+                    args.aov_samples, file_sha256(args.probe), file_sha256(args.decoder / "weights.safetensors"),
                     args.fit_steps, args.max_texture, args.seed)
 
 

@@ -104,7 +104,7 @@ def _stage_commands(asset: Asset, job: Job, work: Path) -> list[tuple[str, list[
            "--threads", str(threads)]
     render = ["render", "--work", str(work), "--asset-id", asset.id, "--frames", str(s.frames),
               "--resolution", str(s.resolution), "--samples", str(s.samples),
-              "--adaptive-threshold", str(s.adaptive_threshold), "--probe", str(job.probe),
+              "--adaptive-threshold", str(s.adaptive_threshold), "--aov-samples", str(s.aov_samples), "--probe", str(job.probe),
               "--seed", str(s.seed), "--threads", str(threads)]
     return [("prepare", job.commands.blender_job(prepare)), ("fit", job.commands.fit_job(fit)),
             ("render", job.commands.blender_job(render))]

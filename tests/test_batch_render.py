@@ -1,0 +1,159 @@
+"""End to end with real Blender and torch: a tiny batch over good and deliberately broken assets.
+
+One run (2 frames, 32 px, 2 samples, 2 fit steps) over: an OBJ with a
+unicode name, a texture far over --max-texture and a missing roughness
+texture; an STL without UVs; a .blend whose driver and registered text block
+would write marker files if they ever ran; a truncated GLB; an ASCII FBX; an
+OBJ with no faces; an unsupported format. Good assets must be rendered with
+every output, bad ones reported in the ledger with a reason, and nothing may
+stop the batch. Needs a trained decoder (skips without one).
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from batch import ledger
+from batch.options import DEFAULT_DECODER
+
+REPO = Path(__file__).resolve().parents[1]
+DEV_DECODER = Path("/work/runs/decoder_cpu")
+
+CUBE_OBJ = """mtllib {mtl}
+v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1
+vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1
+usemtl painted
+f 1/1 4/4 3/3 2/2\nf 5/1 6/2 7/3 8/4\nf 1/1 2/2 6/3 5/4\nf 2/1 3/2 7/3 6/4\nf 3/1 4/2 8/3 7/4\nf 4/1 1/2 5/3 8/4
+"""
+TETRA_STL = """solid t
+facet normal 0 0 -1\n outer loop\n  vertex 0 0 0\n  vertex 0 1 0\n  vertex 1 0 0\n endloop\nendfacet
+facet normal 0 -1 0\n outer loop\n  vertex 0 0 0\n  vertex 1 0 0\n  vertex 0 0 1\n endloop\nendfacet
+facet normal -1 0 0\n outer loop\n  vertex 0 0 0\n  vertex 0 0 1\n  vertex 0 1 0\n endloop\nendfacet
+facet normal 1 1 1\n outer loop\n  vertex 1 0 0\n  vertex 0 1 0\n  vertex 0 0 1\n endloop\nendfacet
+endsolid t
+"""
+TRAP_BLEND = """
+import bpy, sys
+marker = sys.argv[-2]
+bpy.ops.wm.read_factory_settings(use_empty=True)
+bpy.ops.mesh.primitive_cube_add()
+cube = bpy.context.active_object
+text = bpy.data.texts.new("autorun.py")
+text.from_string(f"import pathlib; pathlib.Path({marker + '.text'!r}).touch()")
+text.use_module = True
+fcurve = cube.driver_add("location", 0)
+fcurve.driver.type = "SCRIPTED"
+fcurve.driver.expression = f"__import__('pathlib').Path({marker + '.driver'!r}).touch() or 0.0"
+bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])
+"""
+
+
+def decoder_folder() -> Path:
+    for folder in (DEFAULT_DECODER, DEV_DECODER):
+        if (folder / "weights.safetensors").is_file() and (folder / "state.json").is_file():
+            return folder
+    pytest.skip("no trained decoder: torch_models/neural/weights/ is not committed yet "
+                "(train one with `python -m torch_models train-decoder`)")
+
+
+def make_inputs(folder: Path, marker: Path, env: dict[str, str]) -> None:
+    folder.mkdir()
+    rng = np.random.default_rng(0)
+    Image.fromarray(rng.integers(0, 255, (1024, 1024, 3), np.uint8)).save(folder / "huge.png")
+    (folder / "cube.mtl").write_text("newmtl painted\nKd 0.8 0.3 0.1\nmap_Kd huge.png\nPr 0.5\nmap_Pr gone.png\n")
+    (folder / "painted cube ünï.obj").write_text(CUBE_OBJ.format(mtl="cube.mtl"))
+    (folder / "no_uvs.stl").write_text(TETRA_STL)
+    script = folder.parent / "make_trap.py"
+    script.write_text(TRAP_BLEND)
+    subprocess.run([sys.executable, str(script), str(marker), str(folder / "trap.blend")], check=True,
+                   env=env, capture_output=True, timeout=120)
+    import trimesh
+
+    glb = trimesh.creation.box().export(file_type="glb")
+    (folder / "truncated.glb").write_bytes(glb[: len(glb) // 2])
+    (folder / "ascii.fbx").write_text('; FBX 7.4.0 project file\nFBXHeaderExtension:  {\n FBXHeaderVersion: 1003\n}\n')
+    (folder / "zero_faces.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    (folder / "points.xyz").write_text("0 0 0\n")
+
+
+def test_tiny_batch_renders_good_assets_and_reports_bad_ones(tmp_path: Path) -> None:
+    decoder = decoder_folder()
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "blender_user"), PYTHONPATH=str(REPO))
+    marker = tmp_path / "autoexec_ran"
+    inputs, out = tmp_path / "in", tmp_path / "out"
+    make_inputs(inputs, marker, env)
+    cmd = [sys.executable, str(REPO / "batch" / "render_dataset.py"), "--input", str(inputs), "--output",
+           str(out), "--frames", "2", "--resolution", "32", "--samples", "2", "--aov-samples", "1",
+           "--fit-steps", "2", "--max-texture", "16", "--decoder", str(decoder), "--timeout", "300",
+           "--retries", "0"]
+    proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 1, proc.stderr[-3000:]  # some assets failed, the batch finished
+    records = {r["source"]: r for path in (out / "_ledger").glob("*.jsonl") for r in ledger.read(path)}
+    failed = {k: r["reason"] for k, r in records.items() if r["status"] == "failed"}
+    assert set(failed) == {"truncated.glb", "ascii.fbx", "zero_faces.obj", "points.xyz"}, records
+    assert "ASCII FBX" in failed["ascii.fbx"]
+    assert "no mesh" in failed["zero_faces.obj"] or "zero faces" in failed["zero_faces.obj"]
+    assert "unsupported format '.xyz'" in failed["points.xyz"]
+    assert failed["truncated.glb"].startswith("prepare: ")
+
+    done = {k for k, r in records.items() if r["status"] == "done"}
+    assert done == {"painted cube ünï.obj", "no_uvs.stl", "trap.blend"}
+    notes = records["painted cube ünï.obj"]["notes"]
+    assert any("downscaled from 1024x1024 to 16x16" in n for n in notes), notes
+    assert any("missing texture" in n and "gone.png" in n for n in notes), notes
+    assert any("unwrapped with xatlas" in n for n in records["no_uvs.stl"]["notes"])
+    assert not list(tmp_path.glob("autoexec_ran*"))  # neither the driver nor the text block ran
+
+    for source in done:
+        folder = next(p for p in out.iterdir() if p.name.startswith(Path(source).stem[:6]) and
+                      (p / "manifest.json").is_file())
+        manifest = json.loads((folder / "manifest.json").read_text())
+        for name in ("rgb/0000.png", "rgb/0001.png", "passes/0000.exr", "passes/0001.exr", "orbit.mp4",
+                     "cameras.json", "caption.txt"):
+            assert name in manifest["files"], (source, name)
+        assert manifest["enhancement_type"] in range(6) and manifest["caption"].startswith("a ")
+        assert all(m["furnace"]["checked"] > 0 for m in manifest["fit"]["materials"].values())
+        if source == "trap.blend":
+            assert manifest["autoexec_fail"] is True
+        cams = json.loads((folder / "cameras.json").read_text())
+        assert len(cams["frames"]) == 2 and cams["intrinsics"]["width"] == 32
+        assert (folder / "orbit.mp4").stat().st_size > 0
+        beauty = np.asarray(Image.open(folder / "rgb" / "0000.png"))
+        assert beauty.shape == (32, 32, 3) and beauty.max() > 20 and beauty[0, 0].max() == 0  # black background
+        layers = check_intrinsics(folder / "passes" / "0000.exr")
+        if source == "trap.blend":  # one constant material: its fitted latent, negative values included
+            neural = json.loads(next(folder.glob("materials/*/neural/neural.json")).read_text())
+            covered = layers["coverage"][..., 0] > 0.99
+            seen = np.concatenate([np.median(layers[n][covered][:, :3], axis=0) for n in ("latent_a", "latent_b")])
+            assert np.allclose(seen, neural["latent"], atol=2e-3)
+    assert not list(out.glob("*.partial"))
+
+
+def check_intrinsics(path: Path) -> None:
+    import OpenImageIO as oiio
+
+    image = oiio.ImageInput.open(str(path))
+    layers = {}
+    index = 0
+    while image.seek_subimage(index, 0):
+        spec = image.spec()
+        layers[spec.channelnames[0].split(".")[0]] = image.read_image(format=oiio.FLOAT)
+        index += 1
+    image.close()
+    assert set(layers) == {"Normal", "Position", "basecolor", "latent_a", "latent_b", "coverage"}
+    covered = layers["coverage"][..., 0] > 0.99
+    assert 0.05 < covered.mean() < 0.95
+    normals = layers["Normal"][covered]
+    assert np.allclose(np.linalg.norm(normals, axis=-1), 1.0, atol=0.05)
+    assert np.abs(layers["Position"][covered]).max() <= 0.51  # normalised to the unit cube
+    assert layers["basecolor"][covered][:, :3].max() > 0.01
+    for name in ("latent_a", "latent_b"):
+        assert np.abs(layers[name][covered][:, :3]).max() > 0 and np.abs(layers[name][~covered]).max() == 0
+    return layers
