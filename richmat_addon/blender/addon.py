@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import bpy
 
-from . import neural_assets, operators, panels, props
+from . import neural_assets, operators, panels, preview_neural, props
 
 _CLASSES = (*props.CLASSES, neural_assets.RichmatPreferences, *operators.CLASSES,
-            *panels.CLASSES)
+            preview_neural.RICHMAT_OT_preview_neural, *panels.CLASSES)
 
 
 def register() -> None:

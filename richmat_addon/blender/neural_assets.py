@@ -53,7 +53,6 @@ def assign_latents(enhanced: bpy.types.Material, folder: Path) -> str:
         image.reload()
         image.colorspace_settings.name = "Non-Color"
         node.image = image
-        node.interpolation = "Closest"  # latents are per-texel codes, not colours to blend
         node.parent = frame
         node.location_absolute = (-600.0, 600.0 + 280.0 * k)
     return "latent textures assigned"

@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 import uuid
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import bpy
 import numpy as np
@@ -130,9 +130,13 @@ def _output(tree: bpy.types.NodeTree, source: tuple[str, str]) -> bpy.types.Node
     return next(s for s in node.outputs if s.identifier == source[1])
 
 
-def build_enhanced(p: SlotPlan, mat: EnhancedMaterial, textures: dict[str, Any],
-                   record: dict[str, Any]) -> bpy.types.Material:
-    """The original's copy with only the normal and UV chains kept, plus the enhanced nodes."""
+def copy_with_chains(p: SlotPlan, add_nodes: Callable[[bpy.types.Material], bpy.types.Node]
+                     ) -> bpy.types.Material:
+    """The original's copy with only its normal and UV chains kept, plus the nodes ``add_nodes`` makes.
+
+    ``add_nodes`` returns the shader node whose ``Normal`` input takes the normal
+    chain; every ``tex_*`` image node it adds gets the original textures' UVs.
+    """
     original = p.original
     principled = p.sources.principled
     normal_src = _link_source(principled.inputs["Normal"])
@@ -142,28 +146,35 @@ def build_enhanced(p: SlotPlan, mat: EnhancedMaterial, textures: dict[str, Any],
     if images:
         keep |= _upstream_nodes(images[0].inputs["Vector"])
 
-    enhanced = original.copy()
-    enhanced.richmat.original = original
-    tree = enhanced.node_tree
+    copy = original.copy()
+    copy.richmat.original = original
+    tree = copy.node_tree
     for node in [n for n in tree.nodes if n.name not in keep]:
         tree.nodes.remove(node)
     _frame_kept(tree)
     try:
-        script = cycles_builder.add_enhanced_nodes(enhanced, mat, textures)
-    except (RuntimeError, KeyError, ValueError):
-        bpy.data.materials.remove(enhanced)
+        shader = add_nodes(copy)
+    except (RuntimeError, KeyError, ValueError, OSError):
+        bpy.data.materials.remove(copy)
         raise
     if normal_src:
-        tree.links.new(_output(tree, normal_src), script.inputs["Normal"])
+        tree.links.new(_output(tree, normal_src), shader.inputs["Normal"])
     if vector_src:
         for node in tree.nodes:
             if node.bl_idname == "ShaderNodeTexImage" and node.name.startswith("tex_"):
                 tree.links.new(_output(tree, vector_src), node.inputs["Vector"])
+    if not original.richmat.uid:
+        original.richmat.uid = uuid.uuid4().hex
+    return copy
+
+
+def build_enhanced(p: SlotPlan, mat: EnhancedMaterial, textures: dict[str, Any],
+                   record: dict[str, Any]) -> bpy.types.Material:
+    """The original's copy with the enhanced OSL graph in place of its Principled BSDF."""
+    enhanced = copy_with_chains(p, lambda m: cycles_builder.add_enhanced_nodes(m, mat, textures))
     settings = enhanced.richmat
     settings.type, settings.seed = mat.type, mat.seed
     settings.record = json.dumps(record, default=_jsonable)
-    if not original.richmat.uid:
-        original.richmat.uid = uuid.uuid4().hex
     return enhanced
 
 

@@ -1,0 +1,184 @@
+"""Preview Neural Material: the fitted latents rendered by the decoder itself, in Cycles.
+
+The material is built like the enhanced one (a copy of the original keeping its
+normal and UV chains) around a Script node whose OSL source
+``core.neural_osl`` generates from the decoder weights the latents were fitted
+against. Its neural lobe is lit by the scene's world (an Environment Texture,
+or the Background colour); the diffuse base ``T c`` by everything (docs/addon.md).
+OSL runs on the CPU and OptiX only.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import bpy
+
+from ..core.neural_osl import neural_osl_source, read_safetensors
+from . import neural_assets, neural_backend, uplift
+from .cycles_builder import COLOR_SPACE_COLOR, COLOR_SPACE_DATA, compile_script_node, enable_osl
+from .pbr_source import InputProblem
+
+SCRIPT_NODE = "richmat_neural_osl"
+SUFFIX = " (richmat neural)"
+SAMPLES = 8  # directions per shading point for the neural lobe's world lighting
+
+
+def weights_file(prefs) -> Path:
+    """The decoder the add-on previews with: the preference, else torch_models' shipped weights."""
+    if prefs.weights_dir:
+        return Path(bpy.path.abspath(prefs.weights_dir)) / "weights.safetensors"
+    root = neural_backend.backend_root(prefs.source_dir)
+    if root is None:
+        raise InputProblem("no decoder weights: set Decoder Weights (or Richmat Source) in "
+                           "Preferences > Add-ons > Richmat")
+    return root / "torch_models" / "neural" / "weights" / "weights.safetensors"
+
+
+def _shader_text(weights: Path, digest: str) -> bpy.types.Text:
+    """One generated text per decoder (named by its digest), shared by every neural material."""
+    name = f"richmat_neural_{digest[:12]}.osl"
+    text = bpy.data.texts.get(name)
+    if text is None:
+        text = bpy.data.texts.new(name)
+        text.from_string(neural_osl_source(read_safetensors(weights)))
+    return text
+
+
+def world_lighting(scene: bpy.types.Scene) -> tuple[str, float, tuple[float, float, float]]:
+    """(probe file, rotation about z in radians, colour) of the scene's world, as the shader reads it."""
+    world = scene.world
+    tree = world.node_tree if world else None
+    if tree is None:
+        return "", 0.0, (0.05, 0.05, 0.05)
+    env = next((n for n in tree.nodes if n.bl_idname == "ShaderNodeTexEnvironment" and n.image), None)
+    if env is not None and env.image.source == "FILE" and env.image.packed_file is None:
+        rotation = 0.0
+        vector = env.inputs["Vector"]
+        if vector.is_linked and vector.links[0].from_node.bl_idname == "ShaderNodeMapping":
+            rotation = float(vector.links[0].from_node.inputs["Rotation"].default_value[2])
+        return str(Path(bpy.path.abspath(env.image.filepath)).resolve()), rotation, (0.0, 0.0, 0.0)
+    background = next((n for n in tree.nodes if n.bl_idname == "ShaderNodeBackground"), None)
+    if background is None or background.inputs["Color"].is_linked:
+        return "", 0.0, (0.05, 0.05, 0.05)
+    strength = background.inputs["Strength"].default_value
+    return "", 0.0, tuple(strength * c for c in background.inputs["Color"].default_value[:3])
+
+
+def _image(tree: bpy.types.NodeTree, name: str, file: Path, color: bool, row: int) -> bpy.types.Node:
+    node = tree.nodes.new("ShaderNodeTexImage")
+    node.name = node.label = f"tex_{name}"
+    node.image = bpy.data.images.load(str(file), check_existing=True)
+    node.image.colorspace_settings.name = COLOR_SPACE_COLOR if color else COLOR_SPACE_DATA
+    node.location = (-500.0, -280.0 * row)
+    return node
+
+
+def add_neural_nodes(material: bpy.types.Material, text: bpy.types.Text, baked: Path, neural: Path,
+                     scene: bpy.types.Scene) -> bpy.types.Node:
+    """Script node, latent/base/energy textures or constants, and the output."""
+    tree = material.node_tree
+    script = tree.nodes.new("ShaderNodeScript")
+    script.name, script.label = SCRIPT_NODE, "richmat neural preview (OSL)"
+    script.mode, script.script, script.width = "INTERNAL", text, 240
+    compile_script_node(script)
+    output = tree.nodes.new("ShaderNodeOutputMaterial")
+    output.target, output.location = "CYCLES", (400.0, 0.0)
+    tree.links.new(script.outputs["BSDF"], output.inputs["Surface"])
+
+    record = json.loads((neural / "neural.json").read_text())
+    params = json.loads((baked / "params.json").read_text())
+    if "latent" in record:  # a constant material: one latent vector
+        script.inputs["latent_0"].default_value = record["latent"][:3]
+        script.inputs["latent_1"].default_value = record["latent"][3:]
+    else:
+        for k in range(2):
+            latent = _image(tree, f"latent_{k}", neural / f"latent_{k}.exr", False, k)
+            tree.links.new(latent.outputs["Color"], script.inputs[f"latent_{k}"])
+    if "base_color" in params["textures"]:
+        base = _image(tree, "base_color", baked / params["textures"]["base_color"], True, 2)
+        tree.links.new(base.outputs["Color"], script.inputs["base_color"])
+    else:
+        script.inputs["base_color"].default_value = (*params["constants"]["base_color"], 1.0)
+    scale = record.get("energy_scale", 1.0)
+    if isinstance(scale, str):
+        energy = _image(tree, "energy_scale", neural / scale, False, 3)
+        tree.links.new(energy.outputs["Color"], script.inputs["energy_scale"])
+    else:
+        script.inputs["energy_scale"].default_value = float(scale)
+    probe, rotation, color = world_lighting(scene)
+    script.inputs["probe"].default_value = probe
+    script.inputs["probe_rotation"].default_value = rotation
+    script.inputs["world_color"].default_value = (*color, 1.0)
+    script.inputs["samples"].default_value = SAMPLES
+    return script
+
+
+def preview(context: bpy.types.Context) -> list[str]:
+    """Put the neural preview material in the slots whose enhanced material was fitted."""
+    prefs = neural_assets.preferences(context)
+    weights = weights_file(prefs)
+    if not weights.is_file():
+        raise InputProblem(f"no decoder weights at {weights}: train them (python -m torch_models "
+                           "train-decoder) or set Decoder Weights in Preferences > Add-ons > Richmat")
+    digest = hashlib.sha256(weights.read_bytes()).hexdigest()
+    plans = [p for p in uplift.plan(context.active_object, context.scene.richmat.all_slots)
+             if p.original.richmat.enhanced is not None and p.original.richmat.enhanced.richmat.neural_dir]
+    if not plans:
+        raise InputProblem("no fitted neural material here: run Fit Neural Material first")
+    work = []
+    for p in plans:
+        enhanced = p.original.richmat.enhanced
+        neural = Path(enhanced.richmat.neural_dir)
+        record = json.loads((neural / "neural.json").read_text())
+        if record.get("decoder_sha256") != digest:
+            raise InputProblem(f"{p.original.name}: its latents were fitted against another decoder; "
+                               "run Fit Neural Material again")
+        work.append((p, Path(enhanced.richmat.bake_dir), neural))
+    text = _shader_text(weights, digest)
+    lines = []
+    for p, baked, neural in work:
+        material = uplift.copy_with_chains(
+            p, lambda m: add_neural_nodes(m, text, baked, neural, context.scene))
+        name = p.original.name + SUFFIX
+        previous = bpy.data.materials.get(name)
+        if previous is not None:
+            previous.user_remap(material)
+            bpy.data.materials.remove(previous)
+        material.name = name
+        p.obj.material_slots[p.slot_index].material = material
+        lines.append(name)
+    enable_osl(context.scene)
+    return lines
+
+
+class RICHMAT_OT_preview_neural(bpy.types.Operator):
+    """Render the fitted neural material with an OSL shader that runs the decoder (CPU or OptiX)"""
+
+    bl_idname = "richmat.preview_neural"
+    bl_label = "Preview Neural Material"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        obj = context.active_object
+        material = obj.active_material if obj is not None and obj.type == "MESH" else None
+        if material is None:
+            cls.poll_message_set("Select a mesh object with a material")
+            return False
+        enhanced = uplift.original_of(material).richmat.enhanced
+        if enhanced is None or not enhanced.richmat.neural_dir:
+            cls.poll_message_set("Run Fit Neural Material first")
+            return False
+        return True
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        try:
+            lines = preview(context)
+        except (InputProblem, OSError, RuntimeError) as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, "Neural preview: " + ", ".join(lines) + ". Cycles on the CPU with OSL; "
+                    "the neural lobe is lit by the world only")
+        return {"FINISHED"}

@@ -1,0 +1,221 @@
+"""An OSL shader that evaluates the frozen neural-material decoder (numpy only).
+
+OSL cannot define new BSDFs, so the preview splits the neural material
+``f = s f_neu + T(wi) c / pi`` (torch_models/neural/bsdf.py) in two:
+
+* the diffuse base ``T(wi) c`` is a real ``diffuse()`` closure, lit by Cycles
+  (every light, shadows, indirect light);
+* the neural lobe is an ``emission()`` whose radiance is a Monte Carlo estimate
+  of ``integral f_neu cos L_world dwo`` inside the shader: ``samples``
+  directions from the sampling decoder (its mixture pdf), the decoder at each,
+  and the world probe looked up with ``texture()`` in Blender's
+  equirectangular mapping. It sees the world only (no lamps, no shadows).
+  Random numbers are hashed from the shading position, which moves with
+  Cycles' pixel jitter, so more Cycles samples converge.
+
+The network weights are written into the source as constant arrays, so the
+shader needs nothing but its latent textures. Layer layout and activations
+follow ``torch_models/neural/networks.py`` exactly: decoder input
+``[z(6), wi, wo, h, wi.h]``, ReLU hidden layers, outputs ``exp(min(x, 12))``
+for f*cos (zero below either horizon), sigmoid for T and R; sampling decoder
+input ``[z(6), wi]`` with the tilted-cosine + sheared-GGX mixture. Directions
+are local to the Duff et al. tangent frame the torch renderer uses.
+"""
+from __future__ import annotations
+
+import json
+import struct
+from pathlib import Path
+
+import numpy as np
+
+MAX_LOG_F = 12.0  # networks.MAX_LOG_F
+_DTYPES = {"F32": np.float32, "F16": np.float16, "F64": np.float64}
+
+
+def read_safetensors(path: str | Path) -> dict[str, np.ndarray]:
+    """Tensors of a .safetensors file (8-byte header size, JSON header, raw data); no torch."""
+    raw = Path(path).read_bytes()
+    (size,) = struct.unpack("<Q", raw[:8])
+    header = json.loads(raw[8:8 + size])
+    data = raw[8 + size:]
+    out = {}
+    for name, info in header.items():
+        if name == "__metadata__":
+            continue
+        start, end = info["data_offsets"]
+        out[name] = np.frombuffer(data[start:end], dtype=_DTYPES[info["dtype"]]).reshape(info["shape"]).astype(np.float32)
+    return out
+
+
+def _layers(tensors: dict[str, np.ndarray], prefix: str) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(weight (out, in), bias) of each Linear of an ``mlp`` (indices 0, 2, 4, ...)."""
+    keys = sorted({int(k.split(".")[2]) for k in tensors if k.startswith(prefix + ".net.")})
+    return [(tensors[f"{prefix}.net.{i}.weight"], tensors[f"{prefix}.net.{i}.bias"]) for i in keys]
+
+
+def _array(name: str, values: np.ndarray) -> str:
+    body = ",".join(f"{float(v):.9g}" for v in values.ravel())
+    return f"    float {name}[{values.size}] = {{{body}}};\n"
+
+
+def _mlp_function(name: str, layers: list[tuple[np.ndarray, np.ndarray]]) -> str:
+    """``void name(float x[n_in], output float y[n_out])``: ReLU between layers, linear output."""
+    n_in, n_out = layers[0][0].shape[1], layers[-1][0].shape[0]
+    src = f"void {name}(float x[{n_in}], output float y[{n_out}])\n{{\n"
+    prev, size = "x", n_in
+    for k, (w, b) in enumerate(layers):
+        src += _array(f"W{k}", w) + _array(f"B{k}", b)
+        out_size = w.shape[0]
+        last = k == len(layers) - 1
+        target = "y" if last else f"h{k}"
+        if not last:
+            src += f"    float {target}[{out_size}];\n"
+        src += (f"    for (int o = 0; o < {out_size}; o++) {{\n"
+                f"        float a = B{k}[o];\n"
+                f"        for (int i = 0; i < {size}; i++) a += W{k}[o * {size} + i] * {prev}[i];\n"
+                f"        {target}[o] = {'a' if last else 'max(a, 0.0)'};\n    }}\n")
+        prev, size = target, out_size
+    return src + "}\n\n"
+
+
+_BODY = r"""
+float sinh_approx(float x) { return x * sqrt(1.0 + x * x); }
+float tanh_approx(float x) { return x / sqrt(1.0 + x * x); }
+float sigmoid(float x) { return 1.0 / (1.0 + exp(-x)); }
+
+void decode(float z[6], vector wi, vector wo, output color f, output float T)
+{
+    vector h = normalize(wi + wo);
+    float x[16] = {z[0], z[1], z[2], z[3], z[4], z[5], wi[0], wi[1], wi[2], wo[0], wo[1], wo[2],
+                   h[0], h[1], h[2], dot(wi, h)};
+    float y[5];
+    decoder_mlp(x, y);
+    float above = (wi[2] > 0 && wo[2] > 0) ? 1.0 : 0.0;
+    f = color(exp(min(y[0], MAX_LOG_F)), exp(min(y[1], MAX_LOG_F)), exp(min(y[2], MAX_LOG_F))) * above;
+    T = sigmoid(y[3]);
+}
+
+vector tilted_normal(float tx, float ty) { return normalize(vector(-tx, -ty, 1.0)); }
+
+float mixture_pdf(float m[9], vector wi, vector wo)
+{
+    float p_cos = max(dot(wo, tilted_normal(m[2], m[3])), 0.0) / M_PI;
+    vector h = normalize(wi + wo);
+    float p_ggx = 0.0;
+    if (h[2] > 0) {
+        float hz = max(h[2], 1e-6);
+        float slx = -h[0] / hz - m[7], sly = -h[1] / hz - m[8];
+        float ax = m[4], ay = m[5], rho = m[6];
+        float sx = slx / ax;
+        float sq = sqrt(1.0 - rho * rho);
+        float sy = (sly / ay - rho * sx) / sq;
+        float d = 1.0 + sx * sx + sy * sy;
+        float p22 = 1.0 / (M_PI * d * d) / (ax * ay * sq);
+        p_ggx = p22 / (hz * hz * hz) / (4.0 * max(abs(dot(wo, h)), 1e-6));
+    }
+    return wo[2] > 0 ? m[0] * p_cos + m[1] * p_ggx : 0.0;
+}
+
+vector mixture_sample(float m[9], vector wi, float u0, float u1, float u2)
+{
+    if (u0 < m[0]) {
+        vector n = tilted_normal(m[2], m[3]);
+        float r = sqrt(u1), phi = M_2PI * u2;
+        vector helper = abs(n[2]) < 0.9 ? vector(0, 0, 1) : vector(1, 0, 0);
+        vector t = normalize(cross(helper, n));
+        vector b = cross(n, t);
+        return r * cos(phi) * t + r * sin(phi) * b + sqrt(max(1.0 - u1, 0.0)) * n;
+    }
+    float r = sqrt(u1 / max(1.0 - u1, 1e-7)), phi = M_2PI * u2;
+    float sx = r * cos(phi), sy = r * sin(phi);
+    float x = m[4] * sx + m[7];
+    float y = m[5] * (m[6] * sx + sqrt(1.0 - m[6] * m[6]) * sy) + m[8];
+    vector h = normalize(vector(-x, -y, 1.0));
+    return 2.0 * dot(wi, h) * h - wi;
+}
+
+void mixture(float z[6], vector wi, output float m[9])
+{
+    float x[9] = {z[0], z[1], z[2], z[3], z[4], z[5], wi[0], wi[1], wi[2]};
+    float o[9];
+    sampler_mlp(x, o);
+    float e = exp(o[1] - o[0]);
+    m[0] = 1.0 / (1.0 + e);
+    m[1] = 1.0 - m[0];
+    m[2] = sinh_approx(o[2]);
+    m[3] = sinh_approx(o[3]);
+    m[4] = 1e-3 + 0.5 * (1.0 + tanh_approx(o[4]));
+    m[5] = 1e-3 + 0.5 * (1.0 + tanh_approx(o[5]));
+    m[6] = 0.99 * tanh_approx(o[6]);
+    m[7] = sinh_approx(o[7]);
+    m[8] = sinh_approx(o[8]);
+}
+
+color world_radiance(string probe, float rotation, color world_color, vector d)
+{
+    if (probe == "")
+        return world_color;
+    float c = cos(rotation), s = sin(rotation);
+    vector p = vector(c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]);
+    float u = 0.5 - atan2(p[1], p[0]) / M_2PI;
+    u = u - floor(u);
+    float v = 0.5 + atan2(p[2], hypot(p[0], p[1])) / M_PI;
+    return (color)texture(probe, u, 1.0 - v, "interp", "bilinear", "swrap", "periodic", "twrap", "clamp");
+}
+
+shader richmat_neural(
+    vector latent_0 = 0, vector latent_1 = 0,
+    color base_color = 0.8,
+    float energy_scale = 1.0,
+    string probe = "",
+    float probe_rotation = 0.0,
+    color world_color = 0.05,
+    int samples = 8,
+    normal Normal = N,
+    output closure color BSDF = 0)
+{
+    vector n = normalize(Normal);
+    float sg = n[2] >= 0 ? 1.0 : -1.0;
+    float a = -1.0 / (sg + n[2]);
+    float b = n[0] * n[1] * a;
+    vector t = vector(1.0 + sg * n[0] * n[0] * a, sg * b, -sg * n[0]);
+    vector bt = vector(b, sg + n[1] * n[1] * a, -n[1]);
+    vector view = normalize(I);  // Cycles passes its wi here: towards the viewer (checked)
+    vector wi = vector(dot(view, t), dot(view, bt), dot(view, n));
+    float z[6] = {latent_0[0], latent_0[1], latent_0[2], latent_1[0], latent_1[1], latent_1[2]};
+    color f;
+    float T;
+    decode(z, wi, wi, f, T);
+    BSDF = (T * base_color) * diffuse(n);
+    if (wi[2] > 0 && samples > 0) {
+        float m[9];
+        mixture(z, wi, m);
+        color sum = 0;
+        for (int k = 0; k < samples; k++) {
+            float u0 = hashnoise(P, 3 * k), u1 = hashnoise(P, 3 * k + 1), u2 = hashnoise(P, 3 * k + 2);
+            vector wo = mixture_sample(m, wi, u0, u1, u2);
+            float pdf = mixture_pdf(m, wi, wo);
+            if (pdf <= 0.0)
+                continue;
+            float unused;
+            decode(z, wi, wo, f, unused);
+            sum += f * world_radiance(probe, probe_rotation, world_color,
+                                      wo[0] * t + wo[1] * bt + wo[2] * n) / pdf;
+        }
+        BSDF += (energy_scale / samples) * sum * emission();
+    }
+}
+"""
+
+
+def neural_osl_source(tensors: dict[str, np.ndarray]) -> str:
+    """The preview shader for a trained model's tensors (decoder.* and sampler.* keys)."""
+    decoder, sampler = _layers(tensors, "decoder"), _layers(tensors, "sampler")
+    if decoder[0][0].shape[1] != 16 or decoder[-1][0].shape[0] != 5 or sampler[-1][0].shape[0] != 9:
+        raise ValueError("the weights do not match the decoder layout this shader implements "
+                         "(decoder 16 -> 5, sampling decoder 9 -> 9)")
+    return ("// Generated by richmat_addon.core.neural_osl from trained weights: do not edit.\n"
+            "#include \"stdosl.h\"\n\n"
+            f"#define MAX_LOG_F {MAX_LOG_F}\n\n"
+            + _mlp_function("decoder_mlp", decoder) + _mlp_function("sampler_mlp", sampler) + _BODY)

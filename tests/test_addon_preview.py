@@ -1,0 +1,129 @@
+"""The neural preview shader: the decoder in OSL against the torch renderer, and the operator."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from richmat_addon.core.neural_osl import neural_osl_source, read_safetensors
+
+from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
+
+REPO = Path(__file__).resolve().parents[1]
+SHIPPED_WEIGHTS = REPO / "torch_models" / "neural" / "weights"
+PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
+
+
+@pytest.fixture(scope="module")
+def untrained_model(tmp_path_factory: pytest.TempPathFactory):
+    """Seeded freshly initialised networks saved as a run folder: any weights test the shader's arithmetic."""
+    import torch
+    from safetensors.torch import save_file
+
+    from torch_models.neural.networks import Decoder, Encoder, SamplingDecoder
+    from torch_models.neural.weights import load
+
+    torch.manual_seed(7)
+    folder = tmp_path_factory.mktemp("untrained")
+    nets = {"encoder": Encoder(), "decoder": Decoder(), "sampler": SamplingDecoder()}
+    save_file({f"{name}.{k}": v.contiguous() for name, net in nets.items() for k, v in net.state_dict().items()},
+              str(folder / "weights.safetensors"))
+    (folder / "state.json").write_text(json.dumps({"config": {"width": 64, "depth": 4}}))
+    return folder, load(folder)
+
+
+def test_source_embeds_every_weight_and_the_reader_needs_no_torch(untrained_model):
+    folder, model = untrained_model
+    tensors = read_safetensors(folder / "weights.safetensors")
+    assert np.allclose(tensors["decoder.net.8.weight"], model.decoder.net[8].weight.numpy())
+    src = neural_osl_source(tensors)
+    assert "shader richmat_neural" in src and "emission()" in src and "diffuse(n)" in src
+    assert src.count("float W") == 5 + 3  # decoder and sampling decoder layers
+    with pytest.raises(ValueError, match="layout"):
+        neural_osl_source({k: v for k, v in tensors.items() if not k.startswith("decoder.net.8")})
+
+
+def test_cycles_preview_agrees_with_the_torch_renderer(untrained_model, blender_run, tmp_path: Path):
+    """Same networks, latent, probe and ball: the ball's median colour agrees within 4 %."""
+    import torch
+
+    from torch_models.neural.evaluate import BallSetup
+    from torch_models.neural.bsdf import NeuralBsdf
+    from torch_models.render.ball import render_ball
+
+    folder, model = untrained_model
+    latent = [0.3, -0.5, 0.2, 0.7, -0.1, 0.4]
+    base = [0.5, 0.3, 0.2]
+    res, spp = 32, 64
+    setup = BallSetup.default(res, spp, 0)
+    bsdf = NeuralBsdf(model, torch.tensor([latent]), torch.tensor([base]), 1.0)
+    with torch.no_grad():
+        ref = render_ball(lambda n: bsdf, setup.env, setup.scene, spp, 0)
+    out = blender_run(f'''
+import json, numpy as np, bpy
+from pathlib import Path
+from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
+prefer_blender_bundled_modules()
+from richmat_addon.blender import cycles_builder, preview_scene
+from richmat_addon.core.preview import PreviewScene
+from richmat_addon.core.neural_osl import neural_osl_source, read_safetensors
+bpy.ops.wm.read_homefile(use_empty=True)
+scene = bpy.context.scene
+mat = bpy.data.materials.new("neural")
+tree = mat.node_tree
+tree.nodes.clear()
+text = bpy.data.texts.new("neural.osl")
+text.from_string(neural_osl_source(read_safetensors({str(folder / "weights.safetensors")!r})))
+node = tree.nodes.new("ShaderNodeScript")
+node.mode, node.script = "INTERNAL", text
+cycles_builder.compile_script_node(node)
+tree.links.new(node.outputs["BSDF"], tree.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
+node.inputs["latent_0"].default_value = {latent[:3]}
+node.inputs["latent_1"].default_value = {latent[3:]}
+node.inputs["base_color"].default_value = (*{base}, 1.0)
+node.inputs["probe"].default_value = {str(PROBE)!r}
+node.inputs["samples"].default_value = 8
+preview_scene.setup(scene, PreviewScene(resolution={res}), Path({str(PROBE)!r}), mat, {spp})
+scene.cycles.shading_system = True
+path = Path({str(tmp_path / "cycles.exr")!r})
+preview_scene.render_exr(scene, path)
+img = bpy.data.images.load(str(path))
+px = np.empty({res} * {res} * 4, np.float32)
+img.pixels.foreach_get(px)
+np.save({str(tmp_path / "cycles.npy")!r}, px.reshape({res}, {res}, 4)[::-1])
+''')
+    assert out is None
+    cycles = np.load(tmp_path / "cycles.npy")
+    ball = (cycles[..., 3] > 0.99) & (ref.alpha > 0.99)
+    assert ball.sum() > 200
+    c_med, t_med = np.median(cycles[..., :3][ball], 0), np.median(ref.rgb[ball], 0)
+    assert np.isfinite(cycles).all()
+    assert np.allclose(c_med, t_med, rtol=0.04), (c_med, t_med)
+
+
+PREVIEW = r'''
+obj = procedural_asset(TMP, size=16)
+scene = bpy.context.scene
+scene.richmat.enhancement_type = "2"
+scene.richmat.output_dir = TMP + "/baked"
+scene.richmat.fit_steps = 5
+for op in ("uplift_material", "bake_parameters", "fit_neural", "preview_neural"):
+    res, err = run_op(op)
+    assert res == {"FINISHED"}, (op, err)
+material = obj.active_material
+img = render(32, 4)
+print("RESULT " + json.dumps(dict(name=material.name, nodes=sorted(n.name for n in material.node_tree.nodes),
+                                  finite=bool(np.isfinite(img).all()), mean=float(img.mean()))))
+'''
+
+
+@pytest.mark.skipif(not (SHIPPED_WEIGHTS / "weights.safetensors").is_file(),
+                    reason="no shipped decoder weights in torch_models/neural/weights yet")
+def test_preview_operator_builds_and_renders_the_neural_material(blender_run, extension_zip: Path,  # noqa: F811
+                                                                 tmp_path: Path):
+    result = blender_run(script(f"TMP = {str(tmp_path)!r}\n" + PREVIEW, extension_zip))
+    assert result["name"] == "painted_mat (richmat neural)"
+    assert {"richmat_neural_osl", "tex_latent_0", "tex_latent_1", "normal_map"} <= set(result["nodes"])
+    assert result["finite"] and result["mean"] > 0
