@@ -14,6 +14,7 @@ import numpy as np
 from richmat_addon.core import graph
 from richmat_addon.core.enhance import enhance, is_metallic
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
+from richmat_addon.core.schema import CHANNEL_SLICES
 
 # Lobe alone -> the type whose materials have it, and whether the base is metal.
 LOBE_SOURCES: dict[str, tuple[int, bool]] = {
@@ -32,6 +33,10 @@ class Case:
     def material(self) -> EnhancedMaterial:
         params = {k: ParamMap.constant(*v) for k, v in self.params.items()}
         return EnhancedMaterial(self.name, -1, 0, ParamMap.constant(*self.base_color), params)
+
+    def vector(self) -> np.ndarray:
+        """The packed parameter vector (schema order), as the neural side takes it."""
+        return np.concatenate([np.atleast_1d(self.params[k]) for k in CHANNEL_SLICES]).astype(np.float32)
 
     def graph_node(self) -> graph.Node:
         if self.node == "surface":

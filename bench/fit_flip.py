@@ -19,27 +19,19 @@ import time
 from pathlib import Path
 
 import numpy as np
-import torch
+from PIL import Image
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
 from agreement_cases import cases  # noqa: E402
-from richmat_addon.core.preview import PreviewScene  # noqa: E402
-from richmat_addon.core.schema import CHANNEL_SLICES  # noqa: E402
-from torch_models.brdf.model import LayeredBsdf, params_from_vectors  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.bsdf import NeuralBsdf  # noqa: E402
+from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference, side_by_side  # noqa: E402
 from torch_models.neural.fit import fit_latents, furnace  # noqa: E402
-from torch_models.render.ball import render_ball  # noqa: E402
-from torch_models.render.envmap import EnvMap  # noqa: E402
-from torch_models.render.flip import flip_map  # noqa: E402
-from torch_models.render.tonemap import agx  # noqa: E402
 
 PAPER = {0: (0.0487, 0.0920, 0.1871), 1: (0.0312, 0.0727, 0.1670), 2: (0.0649, 0.0858, 0.1192),
          3: (0.0554, 0.0877, 0.1664), 4: (0.0276, 0.0643, 0.1705), 5: (0.0454, 0.0807, 0.1754)}
 TARGET_MEDIAN, TARGET_WORST = 0.05, 0.12
-PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
 
 
 def main() -> None:
@@ -56,26 +48,22 @@ def main() -> None:
     start = time.perf_counter()
     model = weights.load(args.weights)
     drawn = cases(args.seed, args.per_type, 0)
-    vectors = np.array([np.concatenate([np.atleast_1d(c.params[k]) for k in CHANNEL_SLICES]) for c in drawn],
-                       np.float32)
-    z = fit_latents(model, vectors, args.steps, batch=16384, seed=args.seed)
-    scale = furnace(model, z).energy_scale()
-    env, scene = EnvMap.load(PROBE), PreviewScene(resolution=args.resolution)
-    rows, worst_images = [], {}
+    vectors = np.stack([c.vector() for c in drawn])
+    z = fit_latents(model, vectors, args.steps, seed=args.seed)
+    check = furnace(model, z)
+    scale = check.energy_scale()
+    setup = BallSetup.default(args.resolution, args.spp, args.seed)
+    rows, worst = [], {}
     for k, case in enumerate(drawn):
-        base = torch.tensor([case.base_color])
-        ref = render_ball(lambda n: LayeredBsdf(params_from_vectors(torch.from_numpy(vectors[k:k + 1])), base),
-                          env, scene, args.spp, args.seed)
-        neural = NeuralBsdf(model, z[k:k + 1], base, float(scale[k]))
-        with torch.no_grad():
-            test = render_ball(lambda n: neural, env, scene, args.spp, args.seed)
-        a, b = agx(ref.rgb), agx(test.rgb)
-        error, flip = flip_map(a, b)
+        base = np.array(case.base_color, np.float32)
+        result = compare(render_reference(setup, vectors[k], base),
+                         render_neural(setup, model, z[k], base, float(scale[k])))
         type_ = int(case.name[4])
-        rows.append({"name": case.name, "type": type_, "flip": flip})
-        if flip >= worst_images.get(type_, (-1.0,))[0]:
-            worst_images[type_] = (flip, a, b, error)
-        print(f"{case.name:22s} FLIP {flip:.4f}", flush=True)
+        rows.append({"name": case.name, "type": type_, "flip": result.flip,
+                     "furnace_albedo": float(check.albedo[k]), "repaired": bool(check.failing[k])})
+        if result.flip >= (worst[type_].flip if type_ in worst else -1.0):
+            worst[type_] = result
+        print(f"{case.name:22s} FLIP {result.flip:.4f}", flush=True)
     summary = {}
     for t in range(6):
         f = sorted(r["flip"] for r in rows if r["type"] == t)
@@ -85,11 +73,14 @@ def main() -> None:
               "spp": args.spp, "decoder_sha256": model.digest,
               "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
               "summary": summary, "all_passed": all(s["passed"] for s in summary.values()),
+              "furnace": {"checked": len(z), "passed_unrepaired": int((~check.failing).sum()),
+                          "repaired_by_scaling": int(check.failing.sum()),
+                          "pass_fraction": float((~check.failing).float().mean())},
               "wall_seconds": time.perf_counter() - start, "materials": rows}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=1))
     chart(report, args.out.with_suffix(".png"))
-    sheet(worst_images, args.out.with_name(args.out.stem + "_worst.png"))
+    Image.fromarray(side_by_side([worst[t] for t in sorted(worst)])).save(args.out.with_name(args.out.stem + "_worst.png"))
     for t, s in summary.items():
         print(f"Type {t}: best {s['best']:.4f} median {s['median']:.4f} worst {s['worst']:.4f} "
               f"(paper {s['paper'][1]:.4f} / {s['paper'][2]:.4f})")
@@ -117,18 +108,6 @@ def chart(report: dict, path: Path) -> None:
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-
-
-def sheet(worst: dict, path: Path) -> None:
-    """Per type, the worst material: analytic | neural | FLIP map."""
-    from PIL import Image
-
-    def u8(x: np.ndarray) -> np.ndarray:
-        return (np.clip(x, 0, 1) * 255 + 0.5).astype(np.uint8)
-
-    rows = [np.concatenate([u8(a), u8(b), u8(np.repeat(e[..., None], 3, -1))], 1)
-            for _, (_, a, b, e) in sorted(worst.items())]
-    Image.fromarray(np.concatenate(rows, 0)).save(path)
 
 
 if __name__ == "__main__":

@@ -50,3 +50,41 @@ def test_training_reduces_the_loss_and_resumes(tmp_path: Path) -> None:
     cfg.write_text(json.dumps(dict(TINY, steps=80)))
     assert main(["train-decoder", "--config", str(cfg), "--out", str(out), "--resume"]) == 0
     assert json.loads((out / "state.json").read_text())["step"] == 90
+
+
+def _constant_decoder(width: int, depth: int, albedo: float):  # type: ignore[no-untyped-def]
+    """A decoder whose f*cos is the constant albedo / (2 pi) (a hemisphere of it integrates
+    to ``albedo``) and whose T is ~0, whatever the latent."""
+    from torch_models.neural.networks import Decoder
+
+    dec = Decoder(width, depth)
+    with torch.no_grad():
+        for p in dec.parameters():
+            p.zero_()
+        dec.net[-1].bias[:] = torch.tensor([float(np.log(albedo / (2 * np.pi)))] * 3 + [-20.0, 0.0])
+    return dec
+
+
+def test_energy_penalty_measures_albedo_above_one() -> None:
+    from torch_models.neural.train import energy_penalty
+
+    gen = torch.Generator().manual_seed(0)
+    z = torch.zeros(8, 6)
+    for albedo, expected in ((0.5, 0.0), (1.5, 3 * 0.5)):
+        got = float(energy_penalty(_constant_decoder(8, 1, albedo), z, 50_000, gen))
+        assert abs(got - expected) < 0.05, (albedo, got)
+
+
+def test_energy_phase_removes_energy_gain(tmp_path: Path) -> None:
+    from torch_models.neural.train import TrainConfig, Trainer, energy_penalty
+
+    cfg = TrainConfig(**dict(TINY, width=16, depth=2, steps=0, energy_steps=80, energy_latents=64,
+                             energy_samples=64, sampler_steps=0, checkpoint_every=100, lr_final=2e-3))
+    trainer = Trainer(cfg, tmp_path / "run")
+    trainer.decoder.load_state_dict(_constant_decoder(16, 2, 1.6).state_dict())
+    z = torch.rand(256, 6, generator=torch.Generator().manual_seed(0)) * 2 - 1
+    gen = torch.Generator().manual_seed(1)
+    before = float(energy_penalty(trainer.decoder, z, 256, gen))
+    trainer.run()
+    after = float(energy_penalty(trainer.decoder, z, 256, gen))
+    assert before > 1.0 and after < 0.2 * before

@@ -24,15 +24,23 @@ class NeuralBsdf:
                  glints: Glints | None = None):
         self.model, self.latent, self.base_color = model, latent, base_color
         self.energy_scale, self.glints = energy_scale, glints
+        self._cached: tuple[Tensor, tuple[Tensor, Tensor, Tensor]] | None = None
 
     def _z(self, n: int) -> Tensor:
         return self.latent.expand(n, -1) if self.latent.shape[0] == 1 else self.latent
 
     def _weights(self, wi: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-        """T (N, 1), R (N, 1) and the probability of sampling the diffuse base (N, 1)."""
+        """T (N, 1), R (N, 1) and the probability of sampling the diffuse base (N, 1).
+
+        The renderer asks for them twice per view direction (pdf and sample): the
+        last answer is kept, keyed by the wi tensor itself.
+        """
+        if self._cached is not None and self._cached[0] is wi:
+            return self._cached[1]
         _, t, r = self.model.decoder(self._z(len(wi)), wi, wi)
         diffuse = t * luminance(self.base_color.expand(len(wi), 3))
         p_diffuse = torch.where(diffuse + r > 0, diffuse / (diffuse + r).clamp(min=1e-12), torch.full_like(r, 0.5))
+        self._cached = (wi, (t, r, p_diffuse))
         return t, r, p_diffuse
 
     def eval(self, wi: Tensor, wo: Tensor) -> Tensor:

@@ -30,6 +30,7 @@ from .train import decoder_loss
 from .weights import NeuralModel
 
 QUANT = 1.0 / 256.0
+FIT_BATCH = 16384  # (texel, wi, wo) samples per Adam step, shared by all vectors fitted together
 
 
 @dataclass
@@ -83,7 +84,7 @@ def read_vectors(folder: Path) -> MaterialVectors:
     return MaterialVectors(shape, representatives, texel_rep, len(exact))
 
 
-def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int = 8192, seed: int = 0,
+def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int = FIT_BATCH, seed: int = 0,
                 start: Tensor | None = None, progress=None) -> Tensor:  # type: ignore[no-untyped-def]
     """Latents (K, 6) of K parameter vectors, from the encoder (or ``start``), optimised ``steps`` times."""
     pool = torch.from_numpy(vectors)
@@ -103,37 +104,68 @@ def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int 
     return z.detach()
 
 
+VIEW_COSINES = (1.0, 0.7, 0.4, 0.15, 0.05)
+
+
 @dataclass
 class Furnace:
-    albedo: Tensor  # (K,) worst directional albedo over the view directions checked
-    std_error: Tensor  # (K,) its Monte Carlo standard error
-    transmission: Tensor  # (K,) T at that view direction
+    """Per latent and view angle (K, A): albedo of the brightest channel, its standard error, T."""
+
+    albedos: Tensor
+    std_errors: Tensor
+    transmissions: Tensor
+
+    @property
+    def albedo(self) -> Tensor:
+        """(K,) the worst albedo over the view angles."""
+        return self.albedos.max(1).values
 
     @property
     def failing(self) -> Tensor:
-        return self.albedo > 1.0 + 3.0 * self.std_error
+        """(K,) some view angle gains energy beyond 3 standard errors."""
+        return (self.albedos > 1.0 + 3.0 * self.std_errors).any(1)
 
     def energy_scale(self) -> Tensor:
-        """f_neu scale per latent that brings a failing albedo to 1, keeping T (1 where it passes)."""
-        fix = ((1.0 - self.transmission) / (self.albedo - self.transmission).clamp(min=1e-6)).clamp(0.0, 1.0)
-        return torch.where(self.failing, fix, torch.ones_like(fix))
+        """f_neu scale per latent that brings every failing angle's albedo to 1 at most, keeping T.
+
+        At an angle, s F + T <= 1 needs s <= (1 - T) / F with F = albedo - T; the
+        smallest bound over the failing angles wins (1 where none fails).
+        """
+        over = self.albedos > 1.0 + 3.0 * self.std_errors
+        bound = (1.0 - self.transmissions) / (self.albedos - self.transmissions).clamp(min=1e-6)
+        bound = torch.where(over, bound.clamp(0.0, 1.0), torch.ones_like(bound))
+        return bound.min(1).values
 
 
-def furnace(model: NeuralModel, z: Tensor, n: int = 4096, seed: int = 0) -> Furnace:
-    """White furnace of f_neu + T * (white Lambertian), cosine-sampled, at five view angles."""
+def furnace(model: NeuralModel, z: Tensor, n: int = 4096, seed: int = 0, chunk: int = 1 << 18,
+            energy_scale: Tensor | None = None) -> Furnace:
+    """White furnace of s f_neu + T * (white Lambertian), cosine-sampled, at ``VIEW_COSINES``.
+
+    s is ``energy_scale`` per latent (1 when None), to re-check repaired latents.
+    All latents share the same wo samples per view angle (n of them); latents are
+    decoded in chunks of ``chunk`` evaluations.
+    """
+    scale = torch.ones(len(z)) if energy_scale is None else energy_scale
     gen = torch.Generator().manual_seed(seed)
-    out = Furnace(torch.zeros(len(z)), torch.zeros(len(z)), torch.zeros(len(z)))
+    shape = (len(z), len(VIEW_COSINES))
+    out = Furnace(torch.zeros(shape), torch.zeros(shape), torch.zeros(shape))
+    per_chunk = max(1, chunk // n)
     with torch.no_grad():
-        for mu in (1.0, 0.7, 0.4, 0.15, 0.05):
-            wi = torch.tensor([[math.sqrt(1 - mu * mu), 0.0, mu]]).expand(n, 3)
+        for a, mu in enumerate(VIEW_COSINES):
             u = torch.rand(n, 2, generator=gen)
             r, phi = u[:, 0].sqrt(), 2 * math.pi * u[:, 1]
             wo = torch.stack([r * phi.cos(), r * phi.sin(), (1 - u[:, 0]).clamp(min=1e-7).sqrt()], -1)
             pdf = wo[:, 2] / math.pi
-            for k in range(len(z)):
-                f, t, _ = model.decoder(z[k:k + 1].expand(n, LATENT), wi, wo)
-                est = f.mean(-1) / pdf + t[:, 0]
-                if est.mean() > out.albedo[k]:
-                    out.albedo[k], out.std_error[k] = est.mean(), est.std() / math.sqrt(n)
-                    out.transmission[k] = t[0, 0]
+            wi = torch.tensor([[math.sqrt(1 - mu * mu), 0.0, mu]])
+            for k0 in range(0, len(z), per_chunk):
+                zk = z[k0:k0 + per_chunk]
+                m = len(zk)
+                f, t, _ = model.decoder(zk.repeat_interleave(n, 0), wi.expand(m * n, 3), wo.repeat(m, 1))
+                f = f * scale[k0:k0 + m].repeat_interleave(n, 0)[:, None]
+                est = (f / pdf.repeat(m)[:, None] + t).reshape(m, n, 3)
+                channel = est.mean(1).argmax(1)  # the brightest channel must stay <= 1
+                est = est.gather(2, channel[:, None, None].expand(m, n, 1))[..., 0]
+                out.albedos[k0:k0 + m, a] = est.mean(1)
+                out.std_errors[k0:k0 + m, a] = est.std(1) / math.sqrt(n)
+                out.transmissions[k0:k0 + m, a] = t.reshape(m, n)[:, 0]
     return out

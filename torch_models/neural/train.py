@@ -3,9 +3,13 @@
 Phase 1 trains encoder and decoder together (an autoencoder through the BRDF):
 z = encoder(params) + U(-jitter, jitter), loss = 0.95 L1(log(1 + f)) + 0.04 L1(T)
 + 0.01 L1(R). f spans ten decades, so its L1 is taken on log(1 + f) (targets
-clamped to the decoder's exp ceiling). Phase 2 trains the sampling decoder
-against the frozen decoder's luminance with the score-function estimate of the
-forward KL divergence (Zeltner et al.; neural-notes sec. 1.2).
+clamped to the decoder's exp ceiling). Phase 2 goes on with the same loss plus
+an energy penalty on latents no material maps to (uniform in the enlarged
+training latent box, and encoded latents perturbed by ten times the jitter):
+their white-furnace albedo above 1, so generated or edited latents do not gain
+energy. Phase 3 trains the sampling decoder against the frozen decoder's
+luminance with the score-function estimate of the forward KL divergence
+(Zeltner et al.; neural-notes sec. 1.2).
 
 Data are generated on the fly into an in-memory buffer that is refreshed every
 ``refresh_every`` steps (generating a batch costs more than a training step on a
@@ -43,6 +47,10 @@ class TrainConfig:
     batch: int = 16_384
     steps: int = 20_000
     sampler_steps: int = 4_000
+    energy_steps: int = 0  # phase 2 length; 0 skips it
+    energy_weight: float = 1.0
+    energy_latents: int = 256  # latents per penalty estimate, half uniform in the box, half perturbed
+    energy_samples: int = 256  # cosine-sampled wo per latent
     lr: float = 2e-3
     lr_final: float = 2e-5
     jitter: float = 0.005
@@ -74,6 +82,23 @@ def sampler_loss(sampler: SamplingDecoder, dec: Decoder, z: Tensor, wi: Tensor, 
     return -(weight * pdf.clamp(min=1e-4).log()).mean()
 
 
+def energy_penalty(dec: Decoder, z: Tensor, n: int, gen: torch.Generator) -> Tensor:
+    """Mean white-furnace gain, sum over channels of max(0, albedo - 1), of latents z (M, 6).
+
+    Each latent gets one view direction (cos theta in [0.05, 1]) and n cosine-sampled
+    wo; the albedo of f_neu + T * white Lambertian is estimated per channel.
+    """
+    m = len(z)
+    mu = 0.05 + 0.95 * torch.rand(m, 1, generator=gen)
+    wi = torch.cat([(1 - mu * mu).sqrt(), torch.zeros_like(mu), mu], -1).repeat_interleave(n, 0)
+    u = torch.rand(m * n, 2, generator=gen)
+    r, phi = u[:, 0].sqrt(), 2 * math.pi * u[:, 1]
+    wo = torch.stack([r * phi.cos(), r * phi.sin(), (1 - u[:, 0]).clamp(min=1e-7).sqrt()], -1)
+    f, t, _ = dec(z.repeat_interleave(n, 0), wi, wo)
+    albedo = (f * (math.pi / wo[:, 2:3]) + t).reshape(m, n, 3).mean(1)
+    return torch.relu(albedo - 1.0).sum(-1).mean()
+
+
 def _cosine_lr(cfg: TrainConfig, step: int, total: int) -> float:
     return cfg.lr_final + 0.5 * (cfg.lr - cfg.lr_final) * (1 + math.cos(math.pi * min(step / total, 1.0)))
 
@@ -89,6 +114,7 @@ class Trainer:
         self.encoder, self.decoder = Encoder(), Decoder(cfg.width, cfg.depth)
         self.sampler = SamplingDecoder()
         self.step = 0
+        self.box: tuple[Tensor, Tensor] | None = None  # training latent box, set when phase 2 starts
         self.gen = torch.Generator().manual_seed(cfg.seed)
         self.pool = torch.from_numpy(parameter_vectors(cfg.pool, np.random.default_rng(cfg.seed)))
         self.buffer = [make_batch(self.pool, cfg.batch, self.gen) for _ in range(cfg.buffer_batches)]
@@ -126,21 +152,40 @@ class Trainer:
         return True
 
     # ---- training -------------------------------------------------------------------
-    def _decoder_step(self) -> float:
+    def _decoder_step(self, energy: bool = False) -> float:
+        """One step of phase 1 (cosine learning rate) or, with ``energy``, of phase 2
+        (a low constant rate, plus the energy penalty)."""
         cfg = self.cfg
         if self.step % cfg.refresh_every == 0:
             self.buffer[(self.step // cfg.refresh_every) % len(self.buffer)] = make_batch(self.pool, cfg.batch,
                                                                                           self.gen)
         batch = self.buffer[torch.randint(len(self.buffer), (1,), generator=self.gen).item()]
         for group in self.opt.param_groups:
-            group["lr"] = _cosine_lr(cfg, self.step, cfg.steps)
+            group["lr"] = 5 * cfg.lr_final if energy else _cosine_lr(cfg, self.step, cfg.steps)
         z = self.encoder(batch.vectors)
         z = z + cfg.jitter * (2 * torch.rand(z.shape, generator=self.gen) - 1)
         loss = decoder_loss(self.decoder, z, batch)
+        if energy:
+            loss = loss + cfg.energy_weight * energy_penalty(self.decoder, self._odd_latents(z.detach()),
+                                                             cfg.energy_samples, self.gen)
         self.opt.zero_grad()
         loss.backward()
         self.opt.step()
         return loss.item()
+
+    def _odd_latents(self, z: Tensor) -> Tensor:
+        """Latents no training material maps to: half uniform in the training latent box
+        enlarged by 10 %, half encoded latents perturbed by +-0.05 (ten times the jitter)."""
+        if self.box is None:
+            with torch.no_grad():
+                pool_z = self.encoder(self.pool)
+            lo, hi = pool_z.min(0).values, pool_z.max(0).values
+            self.box = ((lo + hi) / 2 - 0.55 * (hi - lo), (lo + hi) / 2 + 0.55 * (hi - lo))
+        half = self.cfg.energy_latents // 2
+        lo, hi = self.box
+        uniform = lo + (hi - lo) * torch.rand(half, len(lo), generator=self.gen)
+        perturbed = z[:half] + 0.05 * (2 * torch.rand(half, z.shape[1], generator=self.gen) - 1)
+        return torch.cat([uniform, perturbed])
 
     def _sampler_step(self) -> float:
         batch = self.buffer[torch.randint(len(self.buffer), (1,), generator=self.gen).item()]
@@ -157,13 +202,19 @@ class Trainer:
         from tqdm import tqdm
 
         cfg = self.cfg
-        total = cfg.steps + cfg.sampler_steps
+        phases = [("decoder", cfg.steps, self._decoder_step), ("energy", cfg.energy_steps, lambda: self._decoder_step(energy=True)),
+                   ("sampler", cfg.sampler_steps, self._sampler_step)]
+        total = sum(length for _, length, _ in phases)
         losses: list[float] = []
         start = time.perf_counter()
         with tqdm(total=total, initial=self.step, desc="train", unit="step") as bar:
             while self.step < total:
-                phase = "decoder" if self.step < cfg.steps else "sampler"
-                losses.append(self._decoder_step() if phase == "decoder" else self._sampler_step())
+                end = 0
+                for phase, length, step_fn in phases:
+                    end += length
+                    if self.step < end:
+                        break
+                losses.append(step_fn())
                 self.step += 1
                 bar.update(1)
                 if self.step % 50 == 0:
@@ -182,8 +233,8 @@ def plot_history(history: list[dict], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.2))
-    for ax, phase in zip(axes, ("decoder", "sampler")):
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.2))
+    for ax, phase in zip(axes, ("decoder", "energy", "sampler")):
         rows = [h for h in history if h["phase"] == phase]
         if rows:
             ax.plot([h["step"] for h in rows], [h["loss"] for h in rows])
