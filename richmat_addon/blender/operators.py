@@ -183,9 +183,11 @@ class RICHMAT_OT_fit_neural(bpy.types.Operator):
         enhanced = _enhanced(context)
         baked = Path(enhanced.richmat.bake_dir)
         try:
-            python = neural_backend.choose_python(prefs.python)
+            python = neural_backend.choose_python(bpy.path.abspath(prefs.python))
+            source = neural_backend.backend_root(bpy.path.abspath(prefs.source_dir))
+            weights = bpy.path.abspath(prefs.weights_dir) if prefs.weights_dir else ""
             self._job = neural_backend.FitJob(python, baked, baked / "neural", _settings(context).fit_steps,
-                                              neural_backend.backend_root(prefs.source_dir), prefs.weights_dir)
+                                              source, weights)
             self._job.start()
         except neural_backend.BackendProblem as exc:
             self.report({"ERROR"}, str(exc))

@@ -29,7 +29,7 @@ def weights_file(prefs) -> Path:
     """The decoder the add-on previews with: the preference, else torch_models' shipped weights."""
     if prefs.weights_dir:
         return Path(bpy.path.abspath(prefs.weights_dir)) / "weights.safetensors"
-    root = neural_backend.backend_root(prefs.source_dir)
+    root = neural_backend.backend_root(bpy.path.abspath(prefs.source_dir))
     if root is None:
         raise InputProblem("no decoder weights: set Decoder Weights (or Richmat Source) in "
                            "Preferences > Add-ons > Richmat")

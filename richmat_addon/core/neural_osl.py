@@ -161,7 +161,9 @@ color world_radiance(string probe, float rotation, color world_color, vector d)
     float u = 0.5 - atan2(p[1], p[0]) / M_2PI;
     u = u - floor(u);
     float v = 0.5 + atan2(p[2], hypot(p[0], p[1])) / M_PI;
-    return (color)texture(probe, u, 1.0 - v, "interp", "bilinear", "swrap", "periodic", "twrap", "clamp");
+    // Zero derivatives: automatic ones (through P and the hashed samples) would pick a blurred MIP level.
+    return (color)texture(probe, u, 1.0 - v, 0, 0, 0, 0, "interp", "bilinear", "swrap", "periodic",
+                          "twrap", "clamp");
 }
 
 shader richmat_neural(
