@@ -77,11 +77,14 @@ class GlintPattern:
 
     ``scale``: noise cells per unit length (sparkle size ~ 1 / scale);
     ``strength`` in [0, 1]: 0 leaves f_neu unchanged; ``sharpness``: how sparse
-    the sparkles are; ``angular``: how fast the pattern moves with the half vector.
+    the sparkles are; ``angular``: noise cells the pattern moves per unit change of
+    the half vector. Kept near 1: under an environment light a pixel gathers the
+    half vectors of the whole lobe, and a pattern that moves much faster averages
+    away into plain haze.
     """
 
-    def __init__(self, scale: float = 40.0, strength: float = 0.7, seed: int = 0,
-                 sharpness: float = 3.0, angular: float = 4.0) -> None:
+    def __init__(self, scale: float = 20.0, strength: float = 0.7, seed: int = 0,
+                 sharpness: float = 6.0, angular: float = 1.0) -> None:
         if not 0.0 <= strength <= 1.0:
             raise ValueError(f"glint strength must be in [0, 1], got {strength}")
         self.scale, self.strength, self.sharpness, self.angular = scale, strength, sharpness, angular

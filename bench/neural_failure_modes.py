@@ -1,0 +1,256 @@
+"""Where the neural material breaks down: FLIP against roughness, IOR, metalness and view angle.
+
+One base material is drawn with the enhancement rules (Type 0, haze: the core
+and haze lobes that roughness, IOR and metalness act on), and one PBR input is
+swept at a time through ``enhance`` itself, with the same seed, so every other
+parameter stays put and the derived ones follow the rules (alpha_core = r^p,
+alpha_haze = min(1, s r^q)):
+
+- roughness r in 0.02 .. 1, for a dielectric and for a metal;
+- metalness 0 .. 1 (0.5: half dielectric, half conductor, the rarest case in
+  training: only 10 % of training vectors are partial metals);
+- the dielectric IOR over its schema range 1.3 .. 1.8 (set in the enhanced vector).
+
+All sweep points are fitted together against the frozen decoder (with the
+furnace repair applied, as the fit command does), rendered analytically and
+neurally on the preview ball and compared with mean FLIP.
+
+Grazing angle is not a material parameter: the ball shows every view angle at
+once. Two measures: the per-pixel FLIP maps of all sweep points averaged in
+bands of theta_v = acos(n.v) at the pixel centres (what one sees, though FLIP's
+spatial filter mixes the outermost band with the silhouette), and the relative
+error of the directional albedo of f_neu (decoder against analytic, same
+Monte Carlo samples) against theta_i (no image in between).
+
+    python bench/neural_failure_modes.py [--seed S] [--quick] [--weights RUN]
+
+Writes docs/neural_failure_modes.json and .png (one panel per parameter, and
+analytic | neural | FLIP of the worst sweep point).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from richmat_addon.core.enhance import enhance  # noqa: E402
+from richmat_addon.core.maps import ParamMap, PbrInputs  # noqa: E402
+from richmat_addon.core.preview import PreviewScene  # noqa: E402
+from richmat_addon.core.schema import CHANNEL_SLICES  # noqa: E402
+from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors  # noqa: E402
+from torch_models.neural import weights  # noqa: E402
+from torch_models.neural.evaluate import (BallSetup, Comparison, compare, render_neural,  # noqa: E402
+                                          render_reference, side_by_side)
+from torch_models.neural.fit import fit_latents, furnace  # noqa: E402
+from torch_models.neural.weights import NeuralModel  # noqa: E402
+from torch_models.render.camera import hit_sphere, primary_rays  # noqa: E402
+
+FULL = {"roughness": (0.02, 0.05, 0.1, 0.2, 0.4, 0.7, 1.0), "metalness": (0.0, 0.25, 0.4, 0.5, 0.6, 0.75, 1.0),
+        "ior": (1.3, 1.4, 1.5, 1.6, 1.7, 1.8)}
+QUICK = {"roughness": (0.02, 0.1, 0.4, 1.0), "metalness": (0.0, 0.5, 1.0), "ior": (1.3, 1.55, 1.8)}
+VIEW_BANDS = (0.0, 0.1, 0.2, 0.35, 0.5, 0.7, 0.85, 1.0)  # n.v band edges on the ball
+ALBEDO_ANGLES = (0.0, 30.0, 45.0, 60.0, 70.0, 80.0, 85.0, 88.0)  # theta_i, degrees
+TARGET_MEDIAN, TARGET_WORST = 0.05, 0.12  # Table 1 targets, for scale
+
+
+@dataclass(frozen=True)
+class SweepPoint:
+    sweep: str  # "roughness, dielectric", "roughness, metal", "metalness" or "ior"
+    value: float
+    vector: np.ndarray  # packed (22,)
+    base_color: np.ndarray  # (3,)
+
+
+def enhanced_vector(base_color: np.ndarray, roughness: float, metalness: float, seed: int) -> np.ndarray:
+    """Packed Type 0 vector of constant PBR inputs; one seed, so only the inputs move the result."""
+    pbr = PbrInputs("sweep", ParamMap.constant(*base_color), ParamMap.constant(roughness),
+                    ParamMap.constant(metalness))
+    mat = enhance(pbr, 0, seed)
+    return np.concatenate([np.atleast_1d(mat.params[k].mean()) for k in CHANNEL_SLICES]).astype(np.float32)
+
+
+def sweeps(seed: int, values: dict[str, tuple[float, ...]]) -> list[SweepPoint]:
+    """The sweep points around one base material drawn from ``seed``."""
+    rng = np.random.default_rng(seed)
+    base = rng.uniform(0.05, 0.9, 3).astype(np.float32)
+    rough = float(rng.uniform(0.2, 0.5))
+    enhance_seed = int(rng.integers(1 << 30))
+    points = [SweepPoint(f"roughness, {kind}", r, enhanced_vector(base, r, metal, enhance_seed), base)
+              for kind, metal in (("dielectric", 0.0), ("metal", 1.0)) for r in values["roughness"]]
+    points += [SweepPoint("metalness", m, enhanced_vector(base, rough, m, enhance_seed), base)
+               for m in values["metalness"]]
+    dielectric = enhanced_vector(base, rough, 0.0, enhance_seed)
+    for ior in values["ior"]:
+        vector = dielectric.copy()
+        vector[CHANNEL_SLICES["diel_ior"]] = ior
+        points.append(SweepPoint("ior", ior, vector, base))
+    return points
+
+
+def view_cosines(scene: PreviewScene) -> np.ndarray:
+    """n.v at every pixel centre of the ball (H, W); NaN off the ball."""
+    origin, d = primary_rays(scene, torch.full((scene.resolution ** 2, 2), 0.5))
+    hit, p = hit_sphere(origin, d, scene.radius)
+    cos = (-(p / scene.radius) * d).sum(-1)
+    return torch.where(hit, cos, torch.full_like(cos, math.nan)).reshape(scene.resolution, -1).numpy()
+
+
+def flip_by_view_band(errors: list[np.ndarray], cosines: np.ndarray) -> list[dict]:
+    """Mean per-pixel FLIP of all maps in each band of n.v."""
+    stack = np.stack(errors)
+    out = []
+    for lo, hi in zip(VIEW_BANDS[:-1], VIEW_BANDS[1:]):
+        band = (cosines >= lo) & (cosines < hi if hi < 1.0 else cosines <= hi)
+        out.append({"cos_lo": lo, "cos_hi": hi, "theta_mid_deg": math.degrees(math.acos((lo + hi) / 2)),
+                    "pixels": int(band.sum()), "flip": float(stack[:, band].mean())})
+    return out
+
+
+def albedo_errors(model: NeuralModel, vectors: np.ndarray, z: torch.Tensor, scale: torch.Tensor,
+                  n: int = 2048, seed: int = 0) -> np.ndarray:
+    """|A_neural - A_analytic| / A_analytic of f_neu's directional albedo (luminance), (K, angles).
+
+    Both estimated with the same samples, a third each from the analytic model's
+    sampler, the sampling decoder and a cosine lobe (so energy either model puts
+    off the other's lobes is seen). Every (material, angle, sample) is one row.
+    """
+    gen = torch.Generator().manual_seed(seed)
+    k, a = len(vectors), len(ALBEDO_ANGLES)
+    rows = torch.arange(k).repeat_interleave(a * n)
+    theta = torch.tensor(ALBEDO_ANGLES).deg2rad().repeat_interleave(n).repeat(k)
+    wi = torch.stack([theta.sin(), torch.zeros_like(theta), theta.cos()], -1)
+    with torch.no_grad():
+        bsdf = LayeredBsdf(params_from_vectors(torch.from_numpy(vectors)[rows]), torch.ones(1, 3))
+        u = torch.rand(len(rows), 3, generator=gen)
+        r, phi = u[:, 1].sqrt(), 2 * math.pi * u[:, 2]
+        cosine = torch.stack([r * phi.cos(), r * phi.sin(), (1 - u[:, 1]).clamp(min=0).sqrt()], -1)
+        pick = u[:, :1] * 3.0
+        wo = torch.where(pick < 1.0, bsdf.sample(wi, torch.rand(len(rows), 3, generator=gen)),
+                         torch.where(pick < 2.0, model.sampler.sample(z[rows], wi, torch.rand(len(rows), 3,
+                                                                                              generator=gen)), cosine))
+        pdf = (bsdf.pdf(wi, wo) + model.sampler.pdf(z[rows], wi, wo) + wo[:, 2].clamp(min=0) / math.pi) / 3.0
+        weight = torch.where((wo[:, 2] > 0) & (pdf > 0), 1.0 / pdf.clamp(min=1e-12), torch.zeros_like(pdf))
+        analytic = luminance(bsdf.eval_neural_part(wi, wo))[:, 0] * weight
+        neural = luminance(scale[rows, None] * model.decoder(z[rows], wi, wo)[0])[:, 0] * weight
+    analytic, neural = (x.reshape(k, a, n).mean(-1) for x in (analytic, neural))
+    return ((neural - analytic).abs() / analytic.clamp(min=1e-6)).numpy()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--quick", action="store_true", help="fewer points, smaller and noisier balls (< 2 min)")
+    parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "neural_failure_modes.json")
+    parser.add_argument("--steps", type=int, help="fit steps (all sweep points fitted together)")
+    args = parser.parse_args()
+    # Full: 200 x 4096 samples give each of the 27 points ~30 k, more than fit_flip.py gives each of its 300.
+    resolution, spp, steps, batch, albedo_n = (64, 16, 40, 2048, 1024) if args.quick else (96, 32, 200, 4096, 4096)
+    steps = args.steps or steps
+
+    start = time.perf_counter()
+    model = weights.load(args.weights)
+    points = sweeps(args.seed, QUICK if args.quick else FULL)
+    vectors = np.stack([p.vector for p in points])
+    z = fit_latents(model, vectors, steps, batch=batch, seed=args.seed)
+    check = furnace(model, z)
+    scale = check.energy_scale()
+    setup = BallSetup.default(resolution, spp, args.seed)
+    rows, results = [], []
+    for k, point in enumerate(points):
+        result = compare(render_reference(setup, point.vector, point.base_color),
+                         render_neural(setup, model, z[k], point.base_color, float(scale[k])))
+        results.append(result)
+        v = point.vector
+        rows.append({"sweep": point.sweep, "value": point.value, "flip": result.flip,
+                     "alpha_core": float(v[CHANNEL_SLICES["alpha_core"]][0]),
+                     "alpha_haze": float(v[CHANNEL_SLICES["alpha_haze"]][0]),
+                     "furnace_albedo": float(check.albedo[k]), "energy_scale": float(scale[k])})
+        print(f"{point.sweep:22s} {point.value:5.2f}  FLIP {result.flip:.4f}", flush=True)
+    errors = albedo_errors(model, vectors, z, scale, albedo_n, args.seed)
+    report = {"seed": args.seed, "quick": args.quick, "resolution": resolution, "spp": spp, "fit_steps": steps,
+              "decoder_sha256": model.digest, "weights": str(args.weights),
+              "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
+              "base_color": points[0].base_color.tolist(), "points": rows,
+              "grazing": {"flip_by_view_band": flip_by_view_band([r.error for r in results],
+                                                                 view_cosines(setup.scene)),
+                          "albedo_theta_deg": list(ALBEDO_ANGLES),
+                          "albedo_rel_error_median": np.median(errors, 0).tolist(),
+                          "albedo_rel_error_max": errors.max(0).tolist()},
+              "above_target_worst": [r for r in rows if r["flip"] > TARGET_WORST]}
+    worst = int(np.argmax([r["flip"] for r in rows]))
+    report["wall_seconds"] = time.perf_counter() - start
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(report, indent=1))
+    chart(report, results[worst], rows[worst], args.out.with_suffix(".png"))
+    print(f"worst: {rows[worst]['sweep']} {rows[worst]['value']} FLIP {rows[worst]['flip']:.4f}; "
+          f"{report['wall_seconds']:.0f} s")
+
+
+def chart(report: dict, worst: Comparison, worst_row: dict, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = report["points"]
+    fig = plt.figure(figsize=(12, 8.5))
+    grid = fig.add_gridspec(2, 4, height_ratios=[1.0, 0.9])
+    panels = [fig.add_subplot(grid[0, k]) for k in range(4)]
+
+    def series(ax, sweep: str, label: str | None = None) -> None:  # type: ignore[no-untyped-def]
+        pts = [r for r in rows if r["sweep"] == sweep]
+        ax.plot([r["value"] for r in pts], [r["flip"] for r in pts], "o-", label=label)
+
+    def targets(ax) -> None:  # type: ignore[no-untyped-def]
+        ax.axhline(TARGET_MEDIAN, ls="--", color="gray", lw=0.8)
+        ax.axhline(TARGET_WORST, ls=":", color="gray", lw=0.8)
+        ax.set_ylim(bottom=0)
+
+    ax = panels[0]
+    series(ax, "roughness, dielectric", "dielectric")
+    series(ax, "roughness, metal", "metal")
+    ax.set_xscale("log")
+    ax.set(xlabel="PBR roughness r (alpha_core = r^p)", ylabel="mean FLIP, neural vs analytic", title="Roughness")
+    ax.legend(fontsize=8)
+    for ax, sweep, xlabel, title in ((panels[1], "ior", "dielectric IOR", "IOR"),
+                                     (panels[2], "metalness", "metalness", "Metalness")):
+        series(ax, sweep)
+        ax.set(xlabel=xlabel, title=title)
+    ax = panels[3]
+    bands = report["grazing"]["flip_by_view_band"]
+    ax.plot([b["theta_mid_deg"] for b in bands], [b["flip"] for b in bands], "o-", label="FLIP per view band (ball)")
+    ax.set(xlabel="view angle theta (deg)", title="Grazing angle")
+    twin = ax.twinx()
+    twin.plot(report["grazing"]["albedo_theta_deg"], report["grazing"]["albedo_rel_error_median"], "s--",
+              color="tab:red", label="albedo rel. error, median")
+    twin.set_ylabel("relative error of f_neu albedo", color="tab:red")
+    twin.set_ylim(bottom=0)
+    ax.legend(fontsize=7, loc="upper left")
+    twin.legend(fontsize=7, loc="center left")
+    for ax in panels:
+        targets(ax)
+    sheet = fig.add_subplot(grid[1, :])
+    sheet.imshow(side_by_side([worst]))
+    sheet.set_axis_off()
+    sheet.set_title(f"worst point: {worst_row['sweep']} = {worst_row['value']:g} "
+                    f"(alpha_core {worst_row['alpha_core']:.2g}), FLIP {worst_row['flip']:.3f}: "
+                    "analytic | neural | FLIP map", fontsize=9)
+    fig.suptitle(f"Where the neural material breaks down (Type 0 base, seed {report['seed']}, "
+                 f"{report['resolution']} px, {report['spp']} spp; dashed 0.05, dotted 0.12)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+
+
+if __name__ == "__main__":
+    main()

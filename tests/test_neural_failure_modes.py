@@ -1,0 +1,36 @@
+"""The sweeps of bench/neural_failure_modes.py move one parameter, monotonically, and nothing else."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+
+from neural_failure_modes import QUICK, sweeps  # noqa: E402
+from richmat_addon.core.schema import CHANNEL_SLICES  # noqa: E402
+
+
+def _channel(points: list, name: str) -> np.ndarray:
+    return np.array([p.vector[CHANNEL_SLICES[name]][0] for p in points])
+
+
+def test_sweeps_are_monotone_in_the_swept_parameter_only() -> None:
+    points = sweeps(3, QUICK)
+    by = {name: [p for p in points if p.sweep == name] for name in {p.sweep for p in points}}
+    assert {len(v) for v in by.values()} == {3, 4}
+    for kind in ("dielectric", "metal"):
+        rough = by[f"roughness, {kind}"]
+        for name in ("alpha_core", "alpha_haze"):
+            assert np.all(np.diff(_channel(rough, name)) >= 0) and _channel(rough, name)[-1] > _channel(rough, name)[0]
+        # The enhancement's own draws (haze weight, IOR, edge tint) do not move with roughness.
+        for name in ("haze_weight", "diel_ior", "edge_tint", "metalness"):
+            assert np.ptp(_channel(rough, name)) == 0
+    assert np.all(_channel(by["roughness, metal"], "metalness") == 1.0)
+    assert np.allclose(_channel(by["metalness"], "metalness"), QUICK["metalness"])
+    assert np.allclose(_channel(by["ior"], "diel_ior"), QUICK["ior"])
+    ior = np.stack([p.vector for p in by["ior"]])
+    others = np.ones(ior.shape[1], bool)
+    others[CHANNEL_SLICES["diel_ior"]] = False
+    assert np.ptp(ior[:, others], axis=0).max() == 0
