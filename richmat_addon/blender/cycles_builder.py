@@ -147,6 +147,7 @@ def add_enhanced_nodes(material: bpy.types.Material, mat: EnhancedMaterial,
     if missing:
         raise KeyError(f"no texture path for textured parameters {missing}")
 
+    prefer_blender_bundled_modules()  # assigning the script runs Cycles' update, which imports oslquery
     tree = material.node_tree
     text = bpy.data.texts.new(f"{material.name}.osl")
     text.from_string(osl.osl_source(pruned, name="richmat_enhanced"))

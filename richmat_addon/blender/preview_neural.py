@@ -18,6 +18,7 @@ import bpy
 from ..core.neural_osl import neural_osl_source, read_safetensors
 from . import neural_assets, neural_backend, uplift
 from .cycles_builder import COLOR_SPACE_COLOR, COLOR_SPACE_DATA, compile_script_node, enable_osl
+from .osl_env import prefer_blender_bundled_modules
 from .pbr_source import InputProblem
 
 SCRIPT_NODE = "richmat_neural_osl"
@@ -78,6 +79,7 @@ def _image(tree: bpy.types.NodeTree, name: str, file: Path, color: bool, row: in
 def add_neural_nodes(material: bpy.types.Material, text: bpy.types.Text, baked: Path, neural: Path,
                      scene: bpy.types.Scene) -> bpy.types.Node:
     """Script node, latent/base/energy textures or constants, and the output."""
+    prefer_blender_bundled_modules()  # assigning the script runs Cycles' update, which imports oslquery
     tree = material.node_tree
     script = tree.nodes.new("ShaderNodeScript")
     script.name, script.label = SCRIPT_NODE, "richmat neural preview (OSL)"
