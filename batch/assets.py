@@ -38,12 +38,18 @@ def asset_id(key: str) -> str:
     return f"{safe_name(stem, set(), max_bytes=80)}-{digest}"
 
 
-def collect(source: Path) -> list[Asset]:
-    """Assets under a folder, or listed one per line in a file (``#`` comments, relative to the file)."""
+def collect(source: Path, exclude: Path | None = None) -> list[Asset]:
+    """Assets under a folder, or listed one per line in a file (``#`` comments, relative to the file).
+
+    ``exclude`` (the output folder) is never searched, so an output inside the input
+    folder does not turn rendered videos into assets on the next run.
+    """
     if source.is_dir():
+        skip = exclude.resolve() if exclude is not None else None
         files = sorted(p for p in source.rglob("*")
                        if p.is_file() and not any(part.startswith(".") for part in p.relative_to(source).parts)
-                       and p.suffix.lower() not in SIDECARS)
+                       and p.suffix.lower() not in SIDECARS
+                       and (skip is None or skip not in p.resolve().parents))
         entries = [(p.resolve(), p.relative_to(source).as_posix()) for p in files]
     elif source.is_file():
         lines = [ln.strip() for ln in source.read_text(encoding="utf-8").splitlines()]

@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import hashlib
 import math
+import time
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import bpy
 from mathutils import Vector
@@ -73,6 +75,27 @@ def probe_world(probe: Path) -> bpy.types.World:
     tree.links.new(black.outputs["Background"], mix.inputs[2])
     tree.links.new(mix.outputs["Shader"], out.inputs["Surface"])
     return world
+
+
+@contextmanager
+def frame_clock() -> Iterator[list[float]]:
+    """Seconds of each rendered frame (the first one includes scene sync and OSL setup)."""
+    seconds: list[float] = []
+    started: list[float] = []
+
+    def pre(*_: object) -> None:
+        started.append(time.monotonic())
+
+    def post(*_: object) -> None:
+        seconds.append(round(time.monotonic() - started[-1], 3))
+
+    bpy.app.handlers.render_pre.append(pre)
+    bpy.app.handlers.render_post.append(post)
+    try:
+        yield seconds
+    finally:
+        bpy.app.handlers.render_pre.remove(pre)
+        bpy.app.handlers.render_post.remove(post)
 
 
 def start_azimuth(asset_id: str, seed: int) -> float:

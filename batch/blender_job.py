@@ -98,8 +98,10 @@ def render(args: argparse.Namespace) -> None:
         slot.material = built[name][0]
     bl_render.beauty_output(scene, args.work / "rgb")
     start = time.monotonic()
-    bpy.ops.render.render(animation=True, scene=scene.name)
+    with bl_render.frame_clock() as frame_seconds:
+        bpy.ops.render.render(animation=True, scene=scene.name)
     timings["beauty"] = round(time.monotonic() - start, 3)
+    timings["beauty_frames"] = frame_seconds
 
     for slot, name in zip(slots, originals):
         slot.material = built[name][1]

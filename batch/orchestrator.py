@@ -72,7 +72,7 @@ def run(args: argparse.Namespace, commands: Commands | None = None) -> int:
     job = Job(settings, settings_hash, output.resolve(), args.probe.resolve(), args.decoder.resolve(),
               args.timeout, args.retries, args.workers,
               commands or default_commands(args.blender, args.python))
-    mine = [a for a in collect(args.input) if shard.owns(a.id)]
+    mine = [a for a in collect(args.input, exclude=job.output) if shard.owns(a.id)]
     todo = [a for a in mine if not publish.is_done(job.output, a.id, settings_hash)]
     ledger = Ledger(job.output / LEDGER_DIR / f"shard-{shard.label}.jsonl")
     for asset in mine:

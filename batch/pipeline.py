@@ -16,7 +16,7 @@ import shutil
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -92,7 +92,7 @@ class Result:
 def _child_env(blender_home: Path, threads: int) -> dict[str, str]:
     path = os.pathsep.join(p for p in (str(REPO), os.environ.get("PYTHONPATH", "")) if p)
     return dict(os.environ, PYTHONPATH=path, BLENDER_USER_RESOURCES=str(blender_home),
-                OMP_NUM_THREADS=str(threads), RICHMAT_THREADS=str(threads), PYTHONUNBUFFERED="1")
+                OMP_NUM_THREADS=str(threads), PYTHONUNBUFFERED="1")
 
 
 def _stage_commands(asset: Asset, job: Job, work: Path) -> list[tuple[str, list[str]]]:
@@ -104,8 +104,8 @@ def _stage_commands(asset: Asset, job: Job, work: Path) -> list[tuple[str, list[
            "--threads", str(threads)]
     render = ["render", "--work", str(work), "--asset-id", asset.id, "--frames", str(s.frames),
               "--resolution", str(s.resolution), "--samples", str(s.samples),
-              "--adaptive-threshold", str(s.adaptive_threshold), "--aov-samples", str(s.aov_samples), "--probe", str(job.probe),
-              "--seed", str(s.seed), "--threads", str(threads)]
+              "--adaptive-threshold", str(s.adaptive_threshold), "--aov-samples", str(s.aov_samples),
+              "--probe", str(job.probe), "--seed", str(s.seed), "--threads", str(threads)]
     return [("prepare", job.commands.blender_job(prepare)), ("fit", job.commands.fit_job(fit)),
             ("render", job.commands.blender_job(render))]
 
@@ -135,6 +135,9 @@ def _attempt(asset: Asset, job: Job) -> tuple[str, str, dict[str, Any], dict[str
             reason = _bad_input_reason(work)
             if out.exit_code == BAD_INPUT_EXIT and reason:
                 return "bad", f"{stage}: {reason}", info, timings
+            if out.timed_out:
+                return "crash", f"{stage}: timed out (limit {job.timeout:g} s per asset, process group killed)", \
+                    info, timings
             return "crash", f"{stage}: {out.describe()}", info, timings
     return "done", "", {}, timings
 
@@ -148,7 +151,7 @@ def _manifest(asset: Asset, job: Job, timings: dict[str, float], attempts: int) 
     text = captions.caption(asset.path.name.rsplit(".", 1)[0], prepared["materials"])
     (work / "caption.txt").write_text(text + "\n", encoding="utf-8")
     return {"asset_id": asset.id, "source": asset.key, "source_sha256": file_sha256(asset.path),
-            "settings_hash": job.settings_hash, "settings": job.settings.__dict__, "caption": text,
+            "settings_hash": job.settings_hash, "settings": asdict(job.settings), "caption": text,
             "enhancement_type": prepared["type"], "autoexec_fail": prepared.get("autoexec_fail", False),
             "notes": prepared.get("notes", []), "normalisation": prepared.get("normalisation"),
             "materials": prepared["materials"], "fit": fitted, "frames": rendered.get("frames"),

@@ -302,3 +302,20 @@ def test_missing_decoder_is_a_clear_usage_error(tmp_path: Path, capsys: pytest.C
     with pytest.raises(SystemExit):
         main(["--input", str(tmp_path), "--output", str(tmp_path / "o"), "--decoder", str(tmp_path / "none")])
     assert "no weights.safetensors" in capsys.readouterr().err
+
+
+def test_children_match_the_parent_blender_or_python(monkeypatch: pytest.MonkeyPatch) -> None:
+    from types import SimpleNamespace
+
+    from batch.pipeline import default_commands
+
+    monkeypatch.delenv("RICHMAT_PYTHON", raising=False)
+    pip = default_commands(None, None)
+    assert pip.blender == pip.python == sys.executable
+    assert pip.blender_job(["prepare"])[:2] == [sys.executable, str(pip.job_script)]
+    monkeypatch.setitem(sys.modules, "bpy", SimpleNamespace(app=SimpleNamespace(binary_path="/opt/blender/blender")))
+    inside = default_commands(None, "/env/python")
+    assert inside.blender_job(["render", "--x"]) == [
+        "/opt/blender/blender", "-b", "-Y", "--factory-startup", "--python-exit-code", "1", "-P",
+        str(inside.job_script), "--", "render", "--x"]
+    assert inside.fit_job(["--work", "w"]) == ["/env/python", str(inside.fit_script), "--work", "w"]

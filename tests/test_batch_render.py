@@ -6,7 +6,8 @@ texture; an STL without UVs; a .blend whose driver and registered text block
 would write marker files if they ever ran; a truncated GLB; an ASCII FBX; an
 OBJ with no faces; an unsupported format. Good assets must be rendered with
 every output, bad ones reported in the ledger with a reason, and nothing may
-stop the batch. Needs a trained decoder (skips without one).
+stop the batch. Needs a trained decoder: ``$RICHMAT_DECODER``, else the shipped
+weights, else the development run ``/work/runs/decoder_cpu``; skips without one.
 """
 from __future__ import annotations
 
@@ -24,7 +25,7 @@ from batch import ledger
 from batch.options import DEFAULT_DECODER
 
 REPO = Path(__file__).resolve().parents[1]
-DEV_DECODER = Path("/work/runs/decoder_cpu")
+DEV_DECODER = Path("/work/runs/decoder_cpu")  # the training run's checkpoint on the project machines
 
 CUBE_OBJ = """mtllib {mtl}
 v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1
@@ -56,7 +57,8 @@ bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])
 
 
 def decoder_folder() -> Path:
-    for folder in (DEFAULT_DECODER, DEV_DECODER):
+    chosen = os.environ.get("RICHMAT_DECODER")
+    for folder in ([Path(chosen)] if chosen else []) + [DEFAULT_DECODER, DEV_DECODER]:
         if (folder / "weights.safetensors").is_file() and (folder / "state.json").is_file():
             return folder
     pytest.skip("no trained decoder: torch_models/neural/weights/ is not committed yet "
