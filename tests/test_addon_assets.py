@@ -19,9 +19,9 @@ before = render(48, 8)
 timings = {}
 for obj in meshes:
     bpy.context.view_layer.objects.active = obj
-    t = time.perf_counter()
+    t = time.process_time()  # CPU time: wall time on a loaded machine measures the neighbours
     res, err = run_op("uplift_material")
-    timings[obj.name] = time.perf_counter() - t
+    timings[obj.name] = time.process_time() - t
     assert res == {"FINISHED"}, (obj.name, err)
 after = render(48, 8)
 for obj in meshes:

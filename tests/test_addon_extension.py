@@ -160,9 +160,9 @@ original = obj.active_material
 before = render(64, 16)
 scene.richmat.enhancement_type = "2"
 scene.richmat.seed = 3
-t = time.perf_counter()
+t = time.process_time()  # CPU time: wall time on a loaded machine measures the neighbours
 res, err = run_op("uplift_material")
-uplift_s = time.perf_counter() - t
+uplift_s = time.process_time() - t
 assert res == {{"FINISHED"}}, err
 enhanced = obj.active_material
 enhanced_name = enhanced.name

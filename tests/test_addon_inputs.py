@@ -149,13 +149,15 @@ for node in tree.nodes:
         node.image = bpy.data.images.load({str(tmp_path / "orm4k.png")!r})
         node.image.colorspace_settings.name = "Non-Color"
 scene.richmat.enhancement_type = "3"  # dust + coat: masks and the mesh rasterised too
-t = time.perf_counter()
+t, cpu = time.perf_counter(), time.process_time()
 res, err = run_op("uplift_material")
-seconds = time.perf_counter() - t
+seconds, cpu_seconds = time.perf_counter() - t, time.process_time() - cpu
 assert res == {{"FINISHED"}}, err
 sizes = sorted({{tuple(n.image.size) for n in obj.active_material.node_tree.nodes
                  if n.bl_idname == "ShaderNodeTexImage" and n.name.startswith("tex_")}})
-print("RESULT " + json.dumps(dict(seconds=seconds, sizes=sizes)))
+print("RESULT " + json.dumps(dict(seconds=seconds, cpu_seconds=cpu_seconds, sizes=sizes)))
 ''', extension_zip))
     assert result["sizes"] == [[512, 512]]  # preview maps; Bake writes the full 4K
-    assert result["seconds"] < 2.0, result
+    # CPU time of the Blender process: wall time on a shared, loaded CI machine measures the
+    # neighbours; on an idle machine the two agree (the work is single-threaded numpy and decoding).
+    assert result["cpu_seconds"] < 2.0, result
