@@ -33,9 +33,10 @@ def build_parser() -> argparse.ArgumentParser:
     add("--output", type=Path, required=True, help="output folder (one subfolder per asset, ledgers in _ledger/)")
     add("--frames", type=int, default=16, help="frames of the orbit")
     add("--resolution", type=int, default=512, help="image width and height in pixels")
-    add("--samples", type=int, default=32, help="Cycles samples per pixel (adaptive, denoised; "
-                                                "default chosen in docs/render_speed.json)")
-    add("--adaptive-threshold", type=float, default=0.05, help="Cycles adaptive sampling noise threshold")
+    add("--samples", type=int, default=16, help="Cycles samples per pixel of the beauty pass (denoised; "
+                                                "default chosen by bench/render_speed.py, docs/batch.md)")
+    add("--adaptive-threshold", type=float, default=0.01, help="Cycles adaptive sampling noise threshold "
+                                                              "(default chosen with --samples)")
     add("--aov-samples", type=int, default=8, help="samples of the intrinsics pass (anti-aliasing of the EXR maps)")
     add("--probe", type=Path, default=DEFAULT_PROBE, help="HDR light probe (equirectangular)")
     add("--decoder", type=Path, default=DEFAULT_DECODER, help="trained decoder folder "
