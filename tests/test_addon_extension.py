@@ -7,7 +7,6 @@ drives the operators headless on a procedural asset (real assets when
 """
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 import zipfile
@@ -18,8 +17,8 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 
-
 def blender_ext() -> Path:
+    """Blender's extension CLI, shipped inside the bpy wheel."""
     import importlib.util
 
     return Path(importlib.util.find_spec("bpy").origin).parent / "5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py"
@@ -190,9 +189,12 @@ res, err = run_op("export_materialx", directory={str(tmp_path / "mtlx")!r})
 assert res == {{"FINISHED"}}, err
 assert run_op("switch_material")[0] == {{"FINISHED"}}
 switched_to = obj.active_material.name
-# The panels draw without errors in both editors' sidebars.
+# The Richmat tab is registered in both editors' sidebars (the pip module has no window to draw in).
 from bl_ext.user_default.richmat.blender import panels
+assert hasattr(bpy.types, "RICHMAT_PT_view3d") and hasattr(bpy.types, "RICHMAT_PT_shader_editor")
 assert panels.RICHMAT_PT_view3d.bl_category == panels.RICHMAT_PT_shader_editor.bl_category == "Richmat"
+assert (panels.RICHMAT_PT_view3d.bl_space_type, panels.RICHMAT_PT_shader_editor.bl_space_type) == \
+    ("VIEW_3D", "NODE_EDITOR")
 print("RESULT " + json.dumps(dict(
     uplift_s=uplift_s, nodes=sorted(nodes), links=links, engine=engine,
     before=[float(before.mean()), float(before.max())], after=[float(after.mean()), float(after.max())],

@@ -4,7 +4,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pytest
 from PIL import Image
 
 from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
