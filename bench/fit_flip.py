@@ -26,8 +26,7 @@ sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
 from agreement_cases import cases  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference, side_by_side  # noqa: E402
-from torch_models.neural.fit import fit_latents, furnace  # noqa: E402
+from torch_models.neural.evaluate import BallSetup, fit_and_compare, side_by_side  # noqa: E402
 
 PAPER = {0: (0.0487, 0.0920, 0.1871), 1: (0.0312, 0.0727, 0.1670), 2: (0.0649, 0.0858, 0.1192),
          3: (0.0554, 0.0877, 0.1664), 4: (0.0276, 0.0643, 0.1705), 5: (0.0454, 0.0807, 0.1754)}
@@ -49,21 +48,16 @@ def main() -> None:
     model = weights.load(args.weights)
     drawn = cases(args.seed, args.per_type, 0)
     vectors = np.stack([c.vector() for c in drawn])
-    z = fit_latents(model, vectors, args.steps, seed=args.seed)
-    check = furnace(model, z)
-    scale = check.energy_scale()
+    base_colors = np.array([c.base_color for c in drawn], np.float32)
     setup = BallSetup.default(args.resolution, args.spp, args.seed)
+    results, check = fit_and_compare(setup, model, vectors, base_colors, args.steps)
     rows, worst = [], {}
-    for k, case in enumerate(drawn):
-        base = np.array(case.base_color, np.float32)
-        result = compare(render_reference(setup, vectors[k], base),
-                         render_neural(setup, model, z[k], base, float(scale[k])))
+    for k, (case, result) in enumerate(zip(drawn, results)):
         type_ = int(case.name[4])
         rows.append({"name": case.name, "type": type_, "flip": result.flip,
                      "furnace_albedo": float(check.albedo[k]), "repaired": bool(check.failing[k])})
         if result.flip >= (worst[type_].flip if type_ in worst else -1.0):
             worst[type_] = result
-        print(f"{case.name:22s} FLIP {result.flip:.4f}", flush=True)
     summary = {}
     for t in range(6):
         f = sorted(r["flip"] for r in rows if r["type"] == t)
@@ -73,7 +67,7 @@ def main() -> None:
               "spp": args.spp, "decoder_sha256": model.digest,
               "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
               "summary": summary, "all_passed": all(s["passed"] for s in summary.values()),
-              "furnace": {"checked": len(z), "passed_unrepaired": int((~check.failing).sum()),
+              "furnace": {"checked": len(drawn), "passed_unrepaired": int((~check.failing).sum()),
                           "repaired_by_scaling": int(check.failing.sum()),
                           "pass_fraction": float((~check.failing).float().mean())},
               "wall_seconds": time.perf_counter() - start, "materials": rows}

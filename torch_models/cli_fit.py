@@ -37,13 +37,11 @@ def _emit(event: str, **fields: object) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import numpy as np
     import torch
     from safetensors.torch import load_file, save_file
     from tqdm import tqdm
 
     from .cli import InputError, atomic_path
-    from .cli_enhance import write_exr
     from .neural import fit, weights
 
     jsonl = args.progress == "jsonl"
@@ -80,27 +78,11 @@ def run(args: argparse.Namespace) -> int:
                     save_file({"latents": latest["z"], "step": torch.tensor(latest["step"])}, str(tmp))
             print(f"interrupted at step {latest['step']}; --resume continues from {state}")
             return 130
-    check = fit.furnace(model, z)
-    scale = check.energy_scale()
-    record = {"decoder_sha256": model.digest, "material": str(args.material), "steps": args.steps,
-              "final_loss": latest["loss"], "texels": int(len(mv.inverse)) if mv.shape else 1,
-              "exact_unique_vectors": mv.exact_unique, "fitted_vectors": len(mv.unique),
-              "cluster_bound": f"each texel within {fit.QUANT / 2:g} of its representative per normalised parameter",
-              "furnace": {"checked": len(z), "passed": int((~check.failing).sum()),
-                          "repaired_by_scaling": int(check.failing.sum()),
-                          "worst_albedo": float(check.albedo.max())}}
-    if mv.shape is None:
-        record["latent"] = [float(x) for x in z[0]]
-        record["energy_scale"] = float(scale[0])
-    else:
-        texels = z[torch.from_numpy(mv.inverse)].reshape(*mv.shape, 6).numpy()
-        write_exr(args.out / "latent_0.exr", np.ascontiguousarray(texels[..., :3]))
-        write_exr(args.out / "latent_1.exr", np.ascontiguousarray(texels[..., 3:]))
-        if bool((scale < 1).any()):
-            write_exr(args.out / "energy_scale.exr", scale[torch.from_numpy(mv.inverse)].reshape(*mv.shape, 1).numpy())
-        record["energy_scale"] = "energy_scale.exr" if bool((scale < 1).any()) else 1.0
+    record = write_latents(args.out, mv, z, fit.furnace(model, z))
+    record.update(decoder_sha256=model.digest, material=str(args.material), steps=args.steps,
+                  final_loss=latest["loss"])
     with atomic_path(args.out / "neural.json") as tmp:
-        tmp.write_text(json.dumps(record, indent=1))
+        tmp.write_text(json.dumps(record, indent=1, sort_keys=True))
     state.unlink(missing_ok=True)
     if jsonl:
         _emit("done", out=str(args.out), files=sorted(f.name for f in args.out.iterdir() if f.is_file()))
@@ -108,3 +90,32 @@ def run(args: argparse.Namespace) -> int:
     print(f"fitted {len(mv.unique)} vectors ({mv.exact_unique} exact) for {record['texels']} texels; "
           f"furnace: {record['furnace']['passed']}/{len(z)} pass; wrote {args.out}")
     return 0
+
+
+def write_latents(out: Path, mv, z, check) -> dict:  # type: ignore[no-untyped-def]
+    """Write the latent textures (and the energy scale where the furnace repaired) into
+    ``out``; returns the record for neural.json (counts, furnace, the constant latent)."""
+    from .cli_enhance import write_exr
+    from .neural import fit
+
+    out.mkdir(parents=True, exist_ok=True)
+    scale = check.energy_scale()
+    record: dict = {"texels": int(len(mv.inverse)) if mv.shape else 1,
+                    "exact_unique_vectors": mv.exact_unique, "fitted_vectors": len(mv.unique),
+                    "cluster_bound": f"each texel within {fit.QUANT / 2:g} of its representative "
+                                     "per normalised parameter",
+                    "furnace": {"checked": len(z), "passed": int((~check.failing).sum()),
+                                "repaired_by_scaling": int(check.failing.sum()),
+                                "worst_albedo": float(check.albedo.max())}}
+    if mv.shape is None:
+        record["latent"] = [float(x) for x in z[0]]
+        record["energy_scale"] = float(scale[0])
+        return record
+    texels = mv.texels(z)
+    write_exr(out / "latent_0.exr", texels[..., :3])
+    write_exr(out / "latent_1.exr", texels[..., 3:])
+    repaired = bool((scale < 1).any())
+    if repaired:
+        write_exr(out / "energy_scale.exr", mv.texels(scale))
+    record["energy_scale"] = "energy_scale.exr" if repaired else 1.0
+    return record

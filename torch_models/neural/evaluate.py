@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from tqdm import tqdm
 from torch import Tensor
 
 from richmat_addon.core.preview import PreviewScene
@@ -22,6 +23,7 @@ from ..render.envmap import EnvMap
 from ..render.flip import flip_map
 from ..render.tonemap import agx
 from .bsdf import NeuralBsdf
+from .fit import Furnace, fit_latents, furnace
 from .weights import NeuralModel
 
 DEFAULT_PROBE = Path(__file__).resolve().parents[1] / "data" / "studio_small_03_512.hdr"
@@ -79,3 +81,15 @@ def side_by_side(rows: list[Comparison]) -> np.ndarray:
 
     return np.concatenate([np.concatenate([u8(c.reference), u8(c.neural),
                                            u8(np.repeat(c.error[..., None], 3, -1))], 1) for c in rows], 0)
+
+
+def fit_and_compare(setup: BallSetup, model: NeuralModel, vectors: np.ndarray, base_colors: np.ndarray,
+                    steps: int) -> tuple[list[Comparison], Furnace]:
+    """Fit all materials together (K, 22), repair them with the furnace, compare each on the ball."""
+    z = fit_latents(model, vectors, steps, seed=setup.seed)
+    check = furnace(model, z)
+    scale = check.energy_scale()
+    results = [compare(render_reference(setup, vectors[k], base_colors[k]),
+                       render_neural(setup, model, z[k], base_colors[k], float(scale[k])))
+               for k in tqdm(range(len(vectors)), desc="render analytic and neural", unit="material")]
+    return results, check

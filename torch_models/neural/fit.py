@@ -31,6 +31,7 @@ from .weights import NeuralModel
 
 QUANT = 1.0 / 256.0
 FIT_BATCH = 16384  # (texel, wi, wo) samples per Adam step, shared by all vectors fitted together
+FIT_BUFFER = 24  # batches of analytic targets drawn per fit, then reused
 
 
 @dataclass
@@ -42,8 +43,14 @@ class MaterialVectors:
     inverse: np.ndarray  # (H*W,) representative of every texel (empty when constant)
     exact_unique: int  # distinct vectors before merging
 
+    def texels(self, per_vector: Tensor) -> np.ndarray:
+        """Per-representative values (K, C) scattered to the texture, (H, W, C)."""
+        assert self.shape is not None, "a constant material has no texels"
+        values = per_vector.reshape(len(per_vector), -1)[torch.from_numpy(self.inverse)]
+        return np.ascontiguousarray(values.reshape(*self.shape, -1).numpy())
 
-def _read_exr(path: Path) -> np.ndarray:
+
+def read_exr(path: Path) -> np.ndarray:
     import OpenImageIO as oiio
 
     buf = oiio.ImageBuf(str(path))
@@ -58,7 +65,7 @@ def read_vectors(folder: Path) -> MaterialVectors:
     if not record_path.is_file():
         raise ValueError(f"{folder}: not an enhanced material folder (no params.json)")
     record = json.loads(record_path.read_text())
-    maps = {name: _read_exr(folder / file) for name, file in record.get("textures", {}).items()
+    maps = {name: read_exr(folder / file) for name, file in record.get("textures", {}).items()
             if name in CHANNEL_SLICES}
     shape = max((m.shape[:2] for m in maps.values()), default=None, key=lambda s: s[0] * s[1])
     columns = []
@@ -86,15 +93,20 @@ def read_vectors(folder: Path) -> MaterialVectors:
 
 def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int = FIT_BATCH, seed: int = 0,
                 start: Tensor | None = None, progress=None) -> Tensor:  # type: ignore[no-untyped-def]
-    """Latents (K, 6) of K parameter vectors, from the encoder (or ``start``), optimised ``steps`` times."""
+    """Latents (K, 6) of K parameter vectors, from the encoder (or ``start``), optimised ``steps`` times.
+
+    Analytic targets cost far more than a decoder step, so ``FIT_BUFFER`` batches
+    are drawn once and cycled through (fewer when there are fewer steps).
+    """
     pool = torch.from_numpy(vectors)
     with torch.no_grad():
         z0 = model.encoder(pool) if start is None else start
     z = z0.clone().requires_grad_(True)
     opt = torch.optim.Adam([z], lr=1e-2)
     gen = torch.Generator().manual_seed(seed)
+    buffer = [make_batch(pool, batch, gen) for _ in range(min(steps, FIT_BUFFER))]
     for step in range(steps):
-        b = make_batch(pool, batch, gen)
+        b = buffer[step % len(buffer)]
         loss = decoder_loss(model.decoder, z[b.index], b)
         opt.zero_grad()
         loss.backward()
