@@ -54,7 +54,7 @@ def main() -> None:
 
     model = weights.load(args.weights)
     vector = enhanced_vector(BASE_COLOR, ROUGHNESS, 1.0, ENHANCE_SEED)
-    z = fit_latents(model, vector[None], 200, batch=4096)
+    z = fit_latents(model, vector[None], 100, batch=4096)
     scale = float(furnace(model, z).energy_scale()[0])
     base = torch.from_numpy(BASE_COLOR)[None]
     pattern = GlintPattern(scale=args.scale, strength=args.strength)
