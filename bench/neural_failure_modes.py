@@ -155,7 +155,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, help="fit steps (all sweep points fitted together)")
     args = parser.parse_args()
     # Full: 200 x 4096 samples give each of the 27 points ~30 k, more than fit_flip.py gives each of its 300.
-    resolution, spp, steps, batch, albedo_n = (64, 16, 40, 2048, 1024) if args.quick else (96, 32, 200, 4096, 4096)
+    resolution, spp, steps, batch, albedo_n = (64, 16, 20, 1024, 512) if args.quick else (96, 32, 200, 4096, 4096)
     steps = args.steps or steps
 
     start = time.perf_counter()
