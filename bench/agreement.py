@@ -38,7 +38,7 @@ from torch_models.render.tonemap import agx  # noqa: E402
 
 DEFAULT_PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
 # (cases per type, cases per lobe, resolution, Cycles samples, torch spp, FLIP target)
-SETTINGS = {"quick": (1, 1, 96, 256, 256, 0.05), "full": (3, 2, 128, 2048, 1024, 0.03)}
+SETTINGS = {"quick": (1, 1, 96, 256, 256, 0.05), "full": (2, 1, 128, 1024, 256, 0.03)}
 
 
 def render_cycles(all_cases: list[Case], probe: Path, resolution: int, samples: int, seed: int,
@@ -52,6 +52,17 @@ def render_cycles(all_cases: list[Case], probe: Path, resolution: int, samples: 
                           env=env, capture_output=True, text=True)
     if proc.returncode != 0:
         raise SystemExit(f"Cycles renders failed:\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
+    return json.loads((folder / "cycles_times.json").read_text())
+
+
+def reused_cycles(folder: Path, all_cases: list[Case], probe: Path, resolution: int, samples: int,
+                  seed: int) -> dict[str, float]:
+    """Cycles render times of an earlier run in ``folder``, after checking it rendered these very cases."""
+    job = json.loads((folder / "job.json").read_text())
+    same = (job["cases"] == [asdict(c) for c in all_cases] and job["resolution"] == resolution
+            and job["samples"] == samples and job["seed"] == seed and Path(job["probe"]) == probe)
+    if not same or not (folder / "cycles_times.json").is_file():
+        raise SystemExit(f"{folder}: not a finished Cycles run of these cases and settings")
     return json.loads((folder / "cycles_times.json").read_text())
 
 
@@ -110,6 +121,9 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None,
                         help="report JSON (default: docs/agreement[_quick].json); chart and sheet beside it")
     parser.add_argument("--probe", type=Path, default=DEFAULT_PROBE, help="equirectangular HDR probe")
+    parser.add_argument("--reuse-cycles", type=Path, default=None, metavar="DIR",
+                        help="score against the Cycles renders an earlier run of the same settings left in DIR "
+                             "(its job.json must match), e.g. after changing only the torch side")
     args = parser.parse_args()
 
     mode = "quick" if args.quick else "full"
@@ -121,9 +135,13 @@ def main() -> None:
     scene = PreviewScene(resolution=resolution)
     start = time.perf_counter()
     rows, images = [], []
-    with tempfile.TemporaryDirectory(prefix="richmat_agreement_") as tmp:
-        print(f"Cycles: {len(all_cases)} cases at {resolution}px, {samples} spp ...", flush=True)
-        cycles_times = render_cycles(all_cases, args.probe, resolution, samples, args.seed, Path(tmp))
+    with tempfile.TemporaryDirectory(prefix="richmat_agreement_") as fresh:
+        tmp = args.reuse_cycles or Path(fresh)
+        if args.reuse_cycles:
+            cycles_times = reused_cycles(args.reuse_cycles, all_cases, args.probe, resolution, samples, args.seed)
+        else:
+            print(f"Cycles: {len(all_cases)} cases at {resolution}px, {samples} spp ...", flush=True)
+            cycles_times = render_cycles(all_cases, args.probe, resolution, samples, args.seed, tmp)
         for case in all_cases:
             bsdf = torch_bsdf(case)
             result = render_ball(lambda n, b=bsdf: b, env, scene, spp, args.seed)

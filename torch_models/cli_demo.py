@@ -4,7 +4,11 @@ The built-in input is procedural (chipped red paint over steel on a UV sphere,
 see richmat_addon/core/builtin.py), so the demo needs nothing beside the clone.
 Writes OUT/type_<k>/ (parameter maps as EXR, params.json, material.mtlx) for
 Types 0-5, and OUT/side_by_side.png: the original PBR material and Types 0-5
-rendered on a ball under the shipped probe with the torch renderer.
+rendered on a ball under the shipped probe with the torch renderer. Then each
+type is fitted as a neural material with the shipped decoder
+(OUT/type_<k>/neural/: two latent EXRs and neural.json) and
+OUT/neural_vs_analytic.png shows analytic | neural | FLIP map per type, with
+the FLIPs in OUT/neural_vs_analytic.json.
 """
 from __future__ import annotations
 
@@ -22,6 +26,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--resolution", type=int, default=160, help="ball image size in pixels (default: 160)")
     parser.add_argument("--spp", type=int, default=64, help="samples per pixel of the ball renders (default: 64)")
     parser.add_argument("--probe", type=Path, default=DEFAULT_PROBE, help="equirectangular HDR probe")
+    parser.add_argument("--fit-steps", type=int, default=300, help="neural fit steps per type (default: 300)")
+    parser.add_argument("--no-neural", action="store_true", help="skip fitting the neural materials")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -44,4 +50,40 @@ def run(args: argparse.Namespace) -> int:
     image = render_side_by_side(pbr, materials, args.probe, args.resolution, args.spp, args.seed,
                                 args.out / "side_by_side.png")
     print(f"wrote {args.out}/type_0..5 and {image}")
+    if not args.no_neural:
+        fit_and_compare(args, materials)
     return 0
+
+
+def fit_and_compare(args: argparse.Namespace, materials: list) -> None:  # type: ignore[type-arg]
+    """Fit every type with the shipped decoder, write its latents, render analytic vs neural."""
+    import json
+
+    from tqdm import tqdm
+
+    from richmat_addon.core.maps import ParamMap
+
+    from .cli_fit import write_latents
+    from .demo_render import neural_bsdf, render_neural_rows
+    from .neural import fit, weights
+
+    model = weights.load()
+    rows = []
+    for mat in tqdm(materials, desc="fit neural", unit="type"):
+        folder = args.out / f"type_{mat.type}"
+        vectors = fit.read_vectors(folder)
+        z = fit.fit_latents(model, vectors.unique, args.fit_steps, seed=args.seed)
+        check = fit.furnace(model, z)
+        record = write_latents(folder / "neural", vectors, z, check)
+        (folder / "neural" / "neural.json").write_text(json.dumps(dict(record, decoder_sha256=model.digest), indent=1))
+        latents = ParamMap(vectors.texels(z))
+        scales = ParamMap(vectors.texels(check.energy_scale()))
+        rows.append((f"Type {mat.type}", mat, lambda n, m=mat, lt=latents, sc=scales:
+                     neural_bsdf(model, lt, sc, m.base_color, n)))
+    png = args.out / "neural_vs_analytic.png"
+    flips = render_neural_rows(rows, args.probe, args.resolution, args.spp, args.seed, png)
+    (args.out / "neural_vs_analytic.json").write_text(json.dumps(
+        {"flip_convention": "LDR-FLIP on AgX sRGB, 67.02 ppd", "fit_steps": args.fit_steps,
+         "flip": {f"type_{m.type}": f for m, f in zip(materials, flips)}}, indent=1))
+    print("neural vs analytic FLIP: " + ", ".join(f"Type {m.type} {f:.3f}" for m, f in zip(materials, flips))
+          + f"; wrote {png}")

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import torch
@@ -12,6 +13,11 @@ from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
 from richmat_addon.core.preview import PreviewScene
 
 from .brdf.model import LayeredBsdf
+from .neural.bsdf import NeuralBsdf
+from .neural.weights import NeuralModel
+
+
+NeuralBsdfFactory = Callable[[np.ndarray], NeuralBsdf]  # world normals of ball points -> their BSDF
 
 
 def sample_map(pmap: ParamMap, uv: np.ndarray) -> torch.Tensor:
@@ -29,6 +35,13 @@ def material_bsdf(mat: EnhancedMaterial, world_normals: np.ndarray) -> LayeredBs
     uv = sphere_uv(world_normals)
     params = {name: sample_map(m, uv) for name, m in mat.params.items()}
     return LayeredBsdf(params, sample_map(mat.base_color, uv))
+
+
+def neural_bsdf(model: NeuralModel, latents: ParamMap, energy_scale: ParamMap, base_color: ParamMap,
+                world_normals: np.ndarray) -> NeuralBsdf:
+    """The fitted neural material (latent texture, energy scale) at the given ball points."""
+    uv = sphere_uv(world_normals)
+    return NeuralBsdf(model, sample_map(latents, uv), sample_map(base_color, uv), sample_map(energy_scale, uv))
 
 
 def render_side_by_side(pbr: PbrInputs, materials: list[EnhancedMaterial], probe: Path, resolution: int,
@@ -55,3 +68,34 @@ def render_side_by_side(pbr: PbrInputs, materials: list[EnhancedMaterial], probe
     with atomic_path(out_png) as tmp:
         sheet.save(tmp)
     return out_png
+
+
+def render_neural_rows(rows: list[tuple[str, EnhancedMaterial, NeuralBsdfFactory]], probe: Path, resolution: int,
+                       spp: int, seed: int, out_png: Path) -> list[float]:
+    """Per material a row analytic | neural | FLIP map, labelled; returns the mean FLIPs."""
+    from PIL import Image, ImageDraw
+
+    from .cli import atomic_path
+    from .neural.evaluate import compare, side_by_side
+    from .render.ball import render_ball
+    from .render.envmap import EnvMap
+    from .render.tonemap import agx
+
+    env = EnvMap.load(probe)
+    scene = PreviewScene(resolution=resolution)
+    results = []
+    for _, mat, make_neural in rows:
+        ref = render_ball(lambda n, m=mat: material_bsdf(m, n.numpy()), env, scene, spp, seed)
+        with torch.no_grad():
+            neu = render_ball(lambda n: make_neural(n.numpy()), env, scene, spp, seed)
+        results.append(compare(agx(ref.rgb), agx(neu.rgb)))
+    sheet = Image.fromarray(side_by_side(results))
+    draw = ImageDraw.Draw(sheet)
+    for k, ((label, _, _), result) in enumerate(zip(rows, results)):
+        y = k * resolution + 4
+        draw.text((4, y), f"{label} analytic", fill=(255, 255, 255))
+        draw.text((resolution + 4, y), "neural", fill=(255, 255, 255))
+        draw.text((2 * resolution + 4, y), f"FLIP {result.flip:.3f}", fill=(255, 255, 255))
+    with atomic_path(out_png) as tmp:
+        sheet.save(tmp)
+    return [r.flip for r in results]

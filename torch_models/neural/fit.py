@@ -149,7 +149,7 @@ class Furnace:
         return bound.min(1).values
 
 
-def furnace(model: NeuralModel, z: Tensor, n: int = 4096, seed: int = 0, chunk: int = 1 << 18,
+def furnace(model: NeuralModel, z: Tensor, n: int = 1024, seed: int = 0, chunk: int = 1 << 18,
             energy_scale: Tensor | None = None) -> Furnace:
     """White furnace of s f_neu + T * (white Lambertian), cosine-sampled, at ``VIEW_COSINES``.
 
