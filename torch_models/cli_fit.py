@@ -17,6 +17,12 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # torch stays out of ``--help``
+    from torch import Tensor
+
+    from .neural.fit import Furnace, MaterialVectors
 
 HELP = "fit the latent textures of an enhanced material against the frozen decoder"
 
@@ -92,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def write_latents(out: Path, mv, z, check) -> dict:  # type: ignore[no-untyped-def]
+def write_latents(out: Path, mv: MaterialVectors, z: Tensor, check: Furnace) -> dict:
     """Write the latent textures (and the energy scale where the furnace repaired) into
     ``out``; returns the record for neural.json (counts, furnace, the constant latent)."""
     from .cli_enhance import write_exr
