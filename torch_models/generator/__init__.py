@@ -1,0 +1,1 @@
+"""Text-to-neural-material generator (paper sec. 5.2): a small conditional multi-view diffusion model."""
