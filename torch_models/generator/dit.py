@@ -1,0 +1,161 @@
+"""A small diffusion transformer over a stack of views (the CPU-sized stand-in for Cosmos).
+
+Every view of the object is cut into p x p patches; one token per patch carries
+the noisy 6 latent channels and the conditions of those pixels (world normal 3,
+world position 3, base colour 3, coverage 1), so the geometry sits in every
+token, as the paper concatenates its condition latents channel-wise. Attention
+is full across all views x patches: a texel seen in two views can agree with
+itself. Tokens get a learned in-view patch position; views need no index because
+their world positions say where they are. Noise level, text embedding and the
+enhancement type enter every block through adaLN-Zero modulation (DiT).
+
+Type index ``NULL_TYPE`` and a zero text vector are the unconditional input of
+classifier-free guidance.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import torch
+from torch import Tensor, nn
+
+from . import edm
+
+LATENT_CHANNELS = 6
+CONDITION_CHANNELS = 10  # normal 3, position 3, base colour 3, coverage 1
+TYPES = 6
+NULL_TYPE = TYPES
+
+
+@dataclass(frozen=True)
+class DitConfig:
+    size: int = 32  # view resolution (square)
+    patch: int = 4
+    dim: int = 128
+    depth: int = 4
+    heads: int = 4
+    text_dim: int = 384
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _modulate(x: Tensor, shift: Tensor, scale: Tensor) -> Tensor:
+    return x * (1 + scale[:, None]) + shift[:, None]
+
+
+class Block(nn.Module):
+    """Pre-norm attention + MLP block with adaLN-Zero (the gates start at 0, so each block starts as identity)."""
+
+    def __init__(self, dim: int, heads: int) -> None:
+        super().__init__()
+        self.norm1 = nn.LayerNorm(dim, elementwise_affine=False, eps=1e-6)
+        self.attn = nn.MultiheadAttention(dim, heads, batch_first=True)
+        self.norm2 = nn.LayerNorm(dim, elementwise_affine=False, eps=1e-6)
+        self.mlp = nn.Sequential(nn.Linear(dim, 4 * dim), nn.GELU(approximate="tanh"), nn.Linear(4 * dim, dim))
+        self.ada = nn.Linear(dim, 6 * dim)
+        nn.init.zeros_(self.ada.weight)
+        nn.init.zeros_(self.ada.bias)
+
+    def forward(self, x: Tensor, c: Tensor) -> Tensor:
+        s1, k1, g1, s2, k2, g2 = self.ada(nn.functional.silu(c)).chunk(6, -1)
+        h = _modulate(self.norm1(x), s1, k1)
+        x = x + g1[:, None] * self.attn(h, h, h, need_weights=False)[0]
+        return x + g2[:, None] * self.mlp(_modulate(self.norm2(x), s2, k2))
+
+
+class MultiViewDit(nn.Module):
+    """F(c_in x, c_noise | conditions): the raw network that EDM preconditioning wraps."""
+
+    def __init__(self, cfg: DitConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        grid = cfg.size // cfg.patch
+        per_patch = cfg.patch * cfg.patch
+        self.embed = nn.Linear((LATENT_CHANNELS + CONDITION_CHANNELS) * per_patch, cfg.dim)
+        self.position = nn.Parameter(0.02 * torch.randn(grid * grid, cfg.dim))
+        self.noise_features = edm.FourierFeatures(cfg.dim)
+        self.noise_mlp = nn.Sequential(nn.Linear(cfg.dim, cfg.dim), nn.SiLU(), nn.Linear(cfg.dim, cfg.dim))
+        self.text = nn.Linear(cfg.text_dim, cfg.dim)
+        self.type_embed = nn.Embedding(TYPES + 1, cfg.dim)
+        self.blocks = nn.ModuleList(Block(cfg.dim, cfg.heads) for _ in range(cfg.depth))
+        self.final_norm = nn.LayerNorm(cfg.dim, elementwise_affine=False, eps=1e-6)
+        self.final_ada = nn.Linear(cfg.dim, 2 * cfg.dim)
+        self.out = nn.Linear(cfg.dim, LATENT_CHANNELS * per_patch)
+        for layer in (self.final_ada, self.out):
+            nn.init.zeros_(layer.weight)
+            nn.init.zeros_(layer.bias)
+
+    def _patchify(self, x: Tensor) -> Tensor:
+        """(B, V, C, H, W) -> (B, V * grid^2, C * p^2)."""
+        b, v, c, h, w = x.shape
+        p = self.cfg.patch
+        x = x.reshape(b, v, c, h // p, p, w // p, p).permute(0, 1, 3, 5, 2, 4, 6)
+        return x.reshape(b, v * (h // p) * (w // p), c * p * p)
+
+    def _unpatchify(self, t: Tensor, v: int) -> Tensor:
+        b, p, g = len(t), self.cfg.patch, self.cfg.size // self.cfg.patch
+        t = t.reshape(b, v, g, g, LATENT_CHANNELS, p, p).permute(0, 1, 4, 2, 5, 3, 6)
+        return t.reshape(b, v, LATENT_CHANNELS, g * p, g * p)
+
+    def forward(self, x: Tensor, c_noise: Tensor, conditions: Tensor, text: Tensor, type_: Tensor) -> Tensor:
+        """x (B, V, 6, H, W) already scaled by c_in; conditions (B, V, 10, H, W); text (B, text_dim); type_ (B,)."""
+        v = x.shape[1]
+        tokens = self.embed(self._patchify(torch.cat([x, conditions], 2)))
+        tokens = tokens + self.position.repeat(v, 1)
+        c = self.noise_mlp(self.noise_features(c_noise)) + self.text(text) + self.type_embed(type_)
+        for block in self.blocks:
+            tokens = block(tokens, c)
+        shift, scale = self.final_ada(nn.functional.silu(c)).chunk(2, -1)
+        return self._unpatchify(self.out(_modulate(self.final_norm(tokens), shift, scale)), v)
+
+
+@dataclass
+class Conditions:
+    """What a generation is conditioned on, batched: views (B, V, 10, H, W), text (B, 384), type (B,)."""
+
+    views: Tensor
+    text: Tensor
+    type: Tensor
+
+    def unconditional(self) -> "Conditions":
+        """The same geometry with the prompt dropped (zero text, null type)."""
+        return Conditions(self.views, torch.zeros_like(self.text), torch.full_like(self.type, NULL_TYPE))
+
+    def drop(self, keep: Tensor) -> "Conditions":
+        """Per-sample prompt dropout for classifier-free guidance training; keep (B,) bool."""
+        return Conditions(self.views, self.text * keep[:, None], torch.where(keep, self.type, NULL_TYPE))
+
+
+class LatentGenerator(nn.Module):
+    """The preconditioned denoiser D(x; sigma | conditions) and the learned loss log-variance u(sigma)."""
+
+    def __init__(self, cfg: DitConfig) -> None:
+        super().__init__()
+        self.net = MultiViewDit(cfg)
+        self.logvar = edm.LogVariance()
+
+    def denoise(self, x: Tensor, sigma: Tensor, cond: Conditions) -> Tensor:
+        """x0 estimate; background pixels (coverage 0) are forced to 0, as in the data."""
+        s = edm.scalings(sigma.reshape(-1, 1, 1, 1, 1))
+        f = self.net(s.c_in * x, s.c_noise.flatten(), cond.views, cond.text, cond.type)
+        return (s.c_skip * x + s.c_out * f) * cond.views[:, :, -1:]
+
+    def loss(self, x0: Tensor, cond: Conditions, generator: torch.Generator, drop_prob: float = 0.1) -> Tensor:
+        """One training loss: random noise level per sample, prompt dropped with ``drop_prob``."""
+        b = len(x0)
+        sigma = edm.sample_sigma(b, generator)
+        noise = torch.randn(x0.shape, generator=generator)
+        keep = torch.rand(b, generator=generator) >= drop_prob
+        x0_pred = self.denoise(x0 + sigma.reshape(-1, 1, 1, 1, 1) * noise, sigma, cond.drop(keep))
+        return edm.weighted_loss(x0, x0_pred, sigma, self.logvar(sigma), cond.views[:, :, -1:])
+
+    @torch.no_grad()
+    def sample(self, cond: Conditions, steps: int, seed: int, guidance: float = 1.0) -> Tensor:
+        """Latent views (B, V, 6, H, W) for the conditions, deterministic per seed."""
+        b, v, _, h, w = cond.views.shape
+        noise = torch.randn((b, v, LATENT_CHANNELS, h, w), generator=torch.Generator().manual_seed(seed))
+        uncond = cond.unconditional()
+        denoise = edm.guided(lambda x, s: self.denoise(x, s, cond), lambda x, s: self.denoise(x, s, uncond),
+                             guidance)
+        return edm.heun_sample(denoise, noise, steps)
