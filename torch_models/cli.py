@@ -28,6 +28,7 @@ COMMANDS: dict[str, str] = {
     "demo": "torch_models.cli_demo",
     "train-decoder": "torch_models.cli_train_decoder",
     "fit": "torch_models.cli_fit",
+    "train-generator": "torch_models.cli_train_generator",
 }
 
 

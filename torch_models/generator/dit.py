@@ -49,18 +49,26 @@ class Block(nn.Module):
 
     def __init__(self, dim: int, heads: int) -> None:
         super().__init__()
+        self.heads = heads
         self.norm1 = nn.LayerNorm(dim, elementwise_affine=False, eps=1e-6)
-        self.attn = nn.MultiheadAttention(dim, heads, batch_first=True)
+        self.qkv = nn.Linear(dim, 3 * dim)
+        self.proj = nn.Linear(dim, dim)
         self.norm2 = nn.LayerNorm(dim, elementwise_affine=False, eps=1e-6)
         self.mlp = nn.Sequential(nn.Linear(dim, 4 * dim), nn.GELU(approximate="tanh"), nn.Linear(4 * dim, dim))
         self.ada = nn.Linear(dim, 6 * dim)
         nn.init.zeros_(self.ada.weight)
         nn.init.zeros_(self.ada.bias)
 
+    def _attention(self, h: Tensor) -> Tensor:
+        """Full self-attention over all tokens (scaled_dot_product_attention: flash kernels on GPUs)."""
+        b, n, d = h.shape
+        q, k, v = self.qkv(h).reshape(b, n, 3, self.heads, d // self.heads).permute(2, 0, 3, 1, 4)
+        out = nn.functional.scaled_dot_product_attention(q, k, v)
+        return self.proj(out.transpose(1, 2).reshape(b, n, d))
+
     def forward(self, x: Tensor, c: Tensor) -> Tensor:
         s1, k1, g1, s2, k2, g2 = self.ada(nn.functional.silu(c)).chunk(6, -1)
-        h = _modulate(self.norm1(x), s1, k1)
-        x = x + g1[:, None] * self.attn(h, h, h, need_weights=False)[0]
+        x = x + g1[:, None] * self._attention(_modulate(self.norm1(x), s1, k1))
         return x + g2[:, None] * self.mlp(_modulate(self.norm2(x), s2, k2))
 
 
@@ -141,12 +149,14 @@ class LatentGenerator(nn.Module):
         f = self.net(s.c_in * x, s.c_noise.flatten(), cond.views, cond.text, cond.type)
         return (s.c_skip * x + s.c_out * f) * cond.views[:, :, -1:]
 
-    def loss(self, x0: Tensor, cond: Conditions, generator: torch.Generator, drop_prob: float = 0.1) -> Tensor:
-        """One training loss: random noise level per sample, prompt dropped with ``drop_prob``."""
-        b = len(x0)
-        sigma = edm.sample_sigma(b, generator)
-        noise = torch.randn(x0.shape, generator=generator)
-        keep = torch.rand(b, generator=generator) >= drop_prob
+    def forward(self, x0: Tensor, cond: Conditions, generator: torch.Generator, drop_prob: float = 0.1) -> Tensor:
+        """The training loss (forward, so DistributedDataParallel sees it): a random noise level
+        per sample, the prompt dropped with ``drop_prob``. Randomness comes from the CPU
+        ``generator``, so a run is reproducible on any device."""
+        b, dev = len(x0), x0.device
+        sigma = edm.sample_sigma(b, generator).to(dev)
+        noise = torch.randn(x0.shape, generator=generator).to(dev)
+        keep = (torch.rand(b, generator=generator) >= drop_prob).to(dev)
         x0_pred = self.denoise(x0 + sigma.reshape(-1, 1, 1, 1, 1) * noise, sigma, cond.drop(keep))
         return edm.weighted_loss(x0, x0_pred, sigma, self.logvar(sigma), cond.views[:, :, -1:])
 
@@ -154,7 +164,8 @@ class LatentGenerator(nn.Module):
     def sample(self, cond: Conditions, steps: int, seed: int, guidance: float = 1.0) -> Tensor:
         """Latent views (B, V, 6, H, W) for the conditions, deterministic per seed."""
         b, v, _, h, w = cond.views.shape
-        noise = torch.randn((b, v, LATENT_CHANNELS, h, w), generator=torch.Generator().manual_seed(seed))
+        noise = torch.randn((b, v, LATENT_CHANNELS, h, w),
+                            generator=torch.Generator().manual_seed(seed)).to(cond.views.device)
         uncond = cond.unconditional()
         denoise = edm.guided(lambda x, s: self.denoise(x, s, cond), lambda x, s: self.denoise(x, s, uncond),
                              guidance)

@@ -1,0 +1,173 @@
+"""The generator's training corpus: one safetensors file per object.
+
+A sample is an object seen from V orbit views at the working resolution:
+``target`` (V, 6, H, W) latent channels, ``conditions`` (V, 10, H, W) = world
+normal, world position, base colour, coverage; ``text`` (384,) the caption's
+MiniLM embedding; ``type`` the enhancement type (0-5). The caption and asset id
+ride in the file's metadata.
+
+Two sources feed it:
+- ``batch/`` outputs (``from_batch``): the intrinsic EXRs Cycles rendered and the
+  caption batch wrote; the maps are read as they are (render batch at the working
+  resolution).
+- procedural assets (``from_procedural``): enhanced with ``core.enhance`` and
+  encoded to latents with the shipped encoder (optionally refined by a few fit
+  steps), rendered with the torch rasteriser of ``views.py``. This is the fast
+  path: batch's per-asset cost (its latent fit and Cycles, minutes per asset on 2
+  cores, docs/batch.md) makes it too slow for a corpus of hundreds here.
+
+Held-out objects: ``is_held_out`` hashes the asset id, so the split is stable
+whatever order or subset the corpus is built in.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from safetensors.torch import load_file, save_file
+from torch import Tensor
+
+from richmat_addon.core.enhance import enhance, is_metallic
+from richmat_addon.core.maps import EnhancedMaterial, ParamMap
+from richmat_addon.core.schema import PARAMS
+from . import procedural, text
+from .views import Cameras, IntrinsicViews, orbit_cameras, render_intrinsics
+
+HELD_OUT_FRACTION = 0.1
+
+
+def is_held_out(asset_id: str, fraction: float = HELD_OUT_FRACTION) -> bool:
+    digest = hashlib.sha256(f"{asset_id}\0split".encode()).digest()
+    return int.from_bytes(digest[:8], "big") / 2.0 ** 64 < fraction
+
+
+@dataclass
+class Sample:
+    asset_id: str
+    caption: str
+    type: int
+    target: Tensor  # (V, 6, H, W)
+    conditions: Tensor  # (V, 10, H, W)
+    text: Tensor  # (384,)
+
+    def save(self, path: Path) -> None:
+        tensors = {"target": self.target.half().contiguous(), "conditions": self.conditions.half().contiguous(),
+                   "text": self.text.float().contiguous()}
+        save_file(tensors, str(path), metadata={"asset_id": self.asset_id, "caption": self.caption,
+                                                "type": str(self.type)})
+
+    @classmethod
+    def load(cls, path: Path) -> "Sample":
+        from safetensors import safe_open
+
+        with safe_open(str(path), "pt") as f:
+            meta = f.metadata()
+        t = load_file(str(path))
+        return cls(meta["asset_id"], meta["caption"], int(meta["type"]), t["target"].float(),
+                   t["conditions"].float(), t["text"])
+
+
+def pack_vectors(material: EnhancedMaterial, shape: tuple[int, int]) -> np.ndarray:
+    """Per-texel schema vectors (H*W, 22) of an enhanced material; constants broadcast."""
+    n = shape[0] * shape[1]
+    cols = [np.broadcast_to(material.params[p.name].value.reshape(-1, p.channels), (n, p.channels))
+            for p in PARAMS]
+    return np.concatenate(cols, 1).astype(np.float32)
+
+
+def latent_texture(material: EnhancedMaterial, shape: tuple[int, int], fit_steps: int = 0) -> np.ndarray:
+    """(H, W, 6) latents: the shipped encoder per distinct texel vector, optionally refined by the fit."""
+    from ..neural import fit, weights
+
+    vectors = pack_vectors(material, shape)
+    unique, inverse = np.unique(vectors, axis=0, return_inverse=True)
+    model = weights.load()
+    if fit_steps:
+        z = fit.fit_latents(model, unique, fit_steps, batch=4096)
+    else:
+        with torch.no_grad():
+            z = model.encoder(torch.from_numpy(unique))
+    return z.numpy()[inverse.ravel()].reshape(*shape, -1)
+
+
+def caption_for(shape: str, material: EnhancedMaterial, metallic: bool) -> str:
+    """batch's caption (colour, family, enhancement keywords with strength) for one procedural object."""
+    from batch.captions import caption  # the same wording as the batch-rendered corpus
+
+    return caption(shape, [{"name": material.name, "metallic": metallic, "settings": material.settings,
+                            "mean_base_color": material.base_color.mean().tolist()}])
+
+
+def _type_for(asset_id: str, metallic: bool, seed: int) -> int:
+    from batch.enhancement_plan import asset_type, material_type
+
+    return material_type(asset_type(asset_id, seed), metallic)[0]
+
+
+def from_procedural(index: int, cameras: Cameras, texture_size: int = 64, seed: int = 0,
+                    fit_steps: int = 0) -> Sample:
+    asset = procedural.make_asset(index, texture_size, seed)
+    metallic = is_metallic(asset.pbr)
+    type_ = _type_for(asset.asset_id, metallic, seed)
+    material = enhance(asset.pbr, type_, seed, ParamMap(asset.world_normals), ParamMap(asset.world_positions))
+    latents = latent_texture(material, (texture_size, texture_size), fit_steps)
+    views = render_intrinsics(asset.mesh, cameras, asset.pbr.base_color.value, latents)
+    cap = caption_for(asset.shape, material, metallic)
+    return Sample(asset.asset_id, cap, type_, _target(views), views.conditions(), text.embed([cap])[0])
+
+
+def _target(views: IntrinsicViews) -> Tensor:
+    assert views.latents is not None
+    return views.latents.permute(0, 3, 1, 2).contiguous()
+
+
+def read_batch_passes(exr: Path) -> dict[str, np.ndarray]:
+    """Layers of one batch ``passes/NNNN.exr`` frame as (H, W, C) arrays, keyed by layer name."""
+    import OpenImageIO as oiio
+
+    buf = oiio.ImageBuf(str(exr))
+    if buf.has_error:
+        raise ValueError(f"{exr}: cannot read ({buf.geterror().strip()})")
+    pixels = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)
+    layers: dict[str, list[int]] = {}
+    for k, name in enumerate(buf.spec().channelnames):
+        layers.setdefault(name.rsplit(".", 1)[0] if "." in name else name, []).append(k)
+    return {name: pixels[..., idx] for name, idx in layers.items()}
+
+
+def from_batch(folder: Path) -> Sample:
+    """A sample from one finished batch asset folder (passes/, caption.txt, manifest.json)."""
+    manifest = json.loads((folder / "manifest.json").read_text())
+    frames = []
+    for exr in sorted((folder / "passes").glob("*.exr")):
+        layers = read_batch_passes(exr)
+        cover = layers["coverage"][..., :1]
+        inside = cover > 0.5
+        frames.append({"cond": np.concatenate([layers["Normal"][..., :3] * inside, layers["Position"][..., :3] * inside,
+                                               layers["basecolor"][..., :3] * inside, inside.astype(np.float32)], -1),
+                       "target": np.concatenate([layers["latent_a"][..., :3], layers["latent_b"][..., :3]], -1)
+                       * inside})
+    cond = torch.from_numpy(np.stack([f["cond"] for f in frames])).permute(0, 3, 1, 2).contiguous()
+    target = torch.from_numpy(np.stack([f["target"] for f in frames])).permute(0, 3, 1, 2).contiguous()
+    cap = (folder / "caption.txt").read_text().strip()
+    return Sample(manifest["asset_id"], cap, int(manifest["enhancement_type"]), target, cond, text.embed([cap])[0])
+
+
+def build_procedural(out: Path, count: int, views: int, resolution: int, seed: int = 0,
+                     texture_size: int = 64, fit_steps: int = 0, progress: bool = True) -> list[Path]:
+    """Write ``count`` procedural samples into ``out`` (existing files are kept: resumable)."""
+    from tqdm import tqdm
+
+    out.mkdir(parents=True, exist_ok=True)
+    cameras = orbit_cameras(views, resolution)
+    paths = []
+    for index in tqdm(range(count), desc="procedural corpus", disable=not progress):
+        path = out / f"proc-{seed}-{index:05d}.safetensors"
+        if not path.exists():
+            from_procedural(index, cameras, texture_size, seed, fit_steps).save(path)
+        paths.append(path)
+    return paths
