@@ -109,34 +109,42 @@ def _type_for(asset_id: str, metallic: bool, seed: int) -> int:
 
 
 def from_procedural(index: int, cameras: Cameras, texture_size: int = 64, seed: int = 0,
-                    fit_steps: int = 0) -> Sample:
+                    fit_steps: int = 0, supersample: int = 1) -> Sample:
     asset = procedural.make_asset(index, texture_size, seed)
     metallic = is_metallic(asset.pbr)
     type_ = _type_for(asset.asset_id, metallic, seed)
     material = enhance(asset.pbr, type_, seed, ParamMap(asset.world_normals), ParamMap(asset.world_positions))
     latents = latent_texture(material, (texture_size, texture_size), fit_steps)
-    views = render_intrinsics(asset.mesh, cameras, asset.pbr.base_color.value, latents)
+    views = render_intrinsics(asset.mesh, cameras, asset.pbr.base_color.value, latents, supersample)
     cap = caption_for(asset.shape, material, metallic)
-    return Sample(asset.asset_id, cap, type_, _target(views), views.conditions(), text.embed([cap])[0])
+    return sample_from_views(asset.asset_id, cap, type_, views)
 
 
-def _target(views: IntrinsicViews) -> Tensor:
+def sample_from_views(asset_id: str, caption: str, type_: int, views: IntrinsicViews) -> Sample:
+    """A sample from rendered views; pixels count as covered from half coverage on, as in ``from_batch``."""
     assert views.latents is not None
-    return views.latents.permute(0, 3, 1, 2).contiguous()
+    inside = (views.coverage > 0.5).float()
+    cond = views.conditions()
+    cond = torch.cat([cond[:, :9] * inside[:, None], inside[:, None]], 1)
+    target = views.latents.permute(0, 3, 1, 2) * inside[:, None]
+    return Sample(asset_id, caption, type_, target.contiguous(), cond.contiguous(), text.embed([caption])[0])
 
 
 def read_batch_passes(exr: Path) -> dict[str, np.ndarray]:
-    """Layers of one batch ``passes/NNNN.exr`` frame as (H, W, C) arrays, keyed by layer name."""
+    """Layers of one batch ``passes/NNNN.exr`` frame as (H, W, C) arrays, keyed by layer name.
+
+    Blender writes one EXR part (subimage) per layer, named after it."""
     import OpenImageIO as oiio
 
-    buf = oiio.ImageBuf(str(exr))
-    if buf.has_error:
-        raise ValueError(f"{exr}: cannot read ({buf.geterror().strip()})")
-    pixels = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)
-    layers: dict[str, list[int]] = {}
-    for k, name in enumerate(buf.spec().channelnames):
-        layers.setdefault(name.rsplit(".", 1)[0] if "." in name else name, []).append(k)
-    return {name: pixels[..., idx] for name, idx in layers.items()}
+    layers = {}
+    probe = oiio.ImageBuf(str(exr))
+    if probe.has_error:
+        raise ValueError(f"{exr}: cannot read ({probe.geterror().strip()})")
+    for sub in range(max(probe.nsubimages, 1)):
+        buf = oiio.ImageBuf(str(exr), sub, 0)
+        name = buf.spec().getattribute("name") or buf.spec().channelnames[0].split(".")[0]
+        layers[str(name)] = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)
+    return layers
 
 
 def from_batch(folder: Path) -> Sample:
@@ -146,11 +154,15 @@ def from_batch(folder: Path) -> Sample:
     for exr in sorted((folder / "passes").glob("*.exr")):
         layers = read_batch_passes(exr)
         cover = layers["coverage"][..., :1]
+        # Cycles averages its AA samples with the black background: undo that premultiplication
         inside = cover > 0.5
-        frames.append({"cond": np.concatenate([layers["Normal"][..., :3] * inside, layers["Position"][..., :3] * inside,
-                                               layers["basecolor"][..., :3] * inside, inside.astype(np.float32)], -1),
+        unmix = np.where(inside, 1.0 / np.maximum(cover, 1e-6), 0.0)
+        normal = layers["Normal"][..., :3] * unmix
+        normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
+        frames.append({"cond": np.concatenate([normal, layers["Position"][..., :3] * unmix,
+                                               layers["basecolor"][..., :3] * unmix, inside.astype(np.float32)], -1),
                        "target": np.concatenate([layers["latent_a"][..., :3], layers["latent_b"][..., :3]], -1)
-                       * inside})
+                       * unmix})
     cond = torch.from_numpy(np.stack([f["cond"] for f in frames])).permute(0, 3, 1, 2).contiguous()
     target = torch.from_numpy(np.stack([f["target"] for f in frames])).permute(0, 3, 1, 2).contiguous()
     cap = (folder / "caption.txt").read_text().strip()
@@ -158,7 +170,8 @@ def from_batch(folder: Path) -> Sample:
 
 
 def build_procedural(out: Path, count: int, views: int, resolution: int, seed: int = 0,
-                     texture_size: int = 64, fit_steps: int = 0, progress: bool = True) -> list[Path]:
+                     texture_size: int = 64, fit_steps: int = 0, supersample: int = 1,
+                     progress: bool = True) -> list[Path]:
     """Write ``count`` procedural samples into ``out`` (existing files are kept: resumable)."""
     from tqdm import tqdm
 
@@ -168,6 +181,6 @@ def build_procedural(out: Path, count: int, views: int, resolution: int, seed: i
     for index in tqdm(range(count), desc="procedural corpus", disable=not progress):
         path = out / f"proc-{seed}-{index:05d}.safetensors"
         if not path.exists():
-            from_procedural(index, cameras, texture_size, seed, fit_steps).save(path)
+            from_procedural(index, cameras, texture_size, seed, fit_steps, supersample).save(path)
         paths.append(path)
     return paths

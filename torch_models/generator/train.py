@@ -32,6 +32,7 @@ class CorpusConfig:
     resolution: int = 32
     texture_size: int = 64
     fit_steps: int = 0
+    supersample: int = 1  # anti-aliasing of the rasterised views (2: 4 samples per pixel)
     seed: int = 0
 
 
@@ -79,7 +80,7 @@ def learning_rate(cfg: GeneratorTrainConfig, step: int) -> float:
 def load_corpus(cfg: CorpusConfig, progress: bool = True) -> list[corpus.Sample]:
     """All samples of the corpus (made where missing), held-out objects included; callers split."""
     paths = corpus.build_procedural(Path(cfg.dir), cfg.procedural, cfg.views, cfg.resolution, cfg.seed,
-                                    cfg.texture_size, cfg.fit_steps, progress)
+                                    cfg.texture_size, cfg.fit_steps, cfg.supersample, progress)
     samples = [corpus.Sample.load(p) for p in paths]
     samples += [corpus.from_batch(Path(d)) for d in cfg.batch_dirs]
     return samples
