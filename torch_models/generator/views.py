@@ -27,7 +27,6 @@ from torch import Tensor
 LENS_MM, SENSOR_MM = 35.0, 32.0
 ELEVATION_DEG, ELEVATION_SWING_DEG = 25.0, 10.0
 FRAMING_MARGIN = 1.08
-_TRIANGLE_CHUNK = 512
 
 
 @dataclass
@@ -100,9 +99,13 @@ class Fragments:
 
 
 def rasterize(mesh: Mesh, cameras: Cameras) -> Fragments:
-    """Nearest triangle per pixel centre, perspective-correct barycentrics (brute force, chunked)."""
+    """Nearest triangle per pixel centre, perspective-correct barycentrics.
+
+    Each triangle is tested only against the pixel centres inside its screen
+    bounding box: (triangle, pixel) candidate pairs are enumerated at once, the
+    depth test is a scatter-min per pixel, and ties go to the higher triangle id.
+    """
     res = cameras.resolution
-    v = len(cameras.camera_to_world)
     world_to_camera = torch.linalg.inv(cameras.camera_to_world)
     pos = torch.from_numpy(mesh.positions).double()
     homo = torch.cat([pos, torch.ones(len(pos), 1, dtype=torch.float64)], 1)
@@ -112,35 +115,46 @@ def rasterize(mesh: Mesh, cameras: Cameras) -> Fragments:
     sx = c + f * cam[..., 0] / depth.clamp(min=1e-9)
     sy = c - f * cam[..., 1] / depth.clamp(min=1e-9)
     faces = torch.from_numpy(mesh.faces)
-    centres = torch.arange(res, dtype=torch.float64) + 0.5
-    py, px = torch.meshgrid(centres, centres, indexing="ij")
-    px, py = px.reshape(1, -1), py.reshape(1, -1)
-    best_depth = torch.full((v, res * res), math.inf, dtype=torch.float64)
-    best_tri = torch.full((v, res * res), -1, dtype=torch.int64)
-    best_bary = torch.zeros(v, res * res, 3, dtype=torch.float64)
-    for view in range(v):
-        for t0 in range(0, len(faces), _TRIANGLE_CHUNK):
-            tri = faces[t0:t0 + _TRIANGLE_CHUNK]
-            x, y, z = sx[view][tri], sy[view][tri], depth[view][tri]  # (t, 3)
-            area = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
-            ok = (area.abs() > 1e-12) & (z > 1e-6).all(1)
-            safe = torch.where(ok, area, torch.ones_like(area))[:, None]
-            w0 = ((x[:, 1:2] - px) * (y[:, 2:3] - py) - (x[:, 2:3] - px) * (y[:, 1:2] - py)) / safe
-            w1 = ((x[:, 2:3] - px) * (y[:, 0:1] - py) - (x[:, 0:1] - px) * (y[:, 2:3] - py)) / safe
-            w2 = 1.0 - w0 - w1
-            inside = (w0 >= 0) & (w1 >= 0) & (w2 >= 0) & ok[:, None]
-            # perspective correction: screen barycentrics / depth, renormalised
-            b = torch.stack([w0 / z[:, 0:1], w1 / z[:, 1:2], w2 / z[:, 2:3]], -1)
-            inv_z = b.sum(-1)
-            b = b / inv_z[..., None]
-            pix_depth = torch.where(inside, 1.0 / inv_z, torch.full_like(inv_z, math.inf))
-            d, k = pix_depth.min(0)
-            closer = d < best_depth[view]
-            best_depth[view] = torch.where(closer, d, best_depth[view])
-            best_tri[view] = torch.where(closer, t0 + k, best_tri[view])
-            chosen = b.gather(0, k[None, :, None].expand(1, -1, 3))[0]
-            best_bary[view] = torch.where(closer[:, None], chosen, best_bary[view])
-    return Fragments(best_tri.reshape(v, res, res), best_bary.reshape(v, res, res, 3).float())
+    triangles, barys = [], []
+    for view in range(len(world_to_camera)):
+        tri, bary = _rasterize_view(sx[view][faces], sy[view][faces], depth[view][faces], res)
+        triangles.append(tri)
+        barys.append(bary)
+    return Fragments(torch.stack(triangles).reshape(-1, res, res), torch.stack(barys).reshape(-1, res, res, 3).float())
+
+
+def _rasterize_view(x: Tensor, y: Tensor, z: Tensor, res: int) -> tuple[Tensor, Tensor]:
+    """x, y (T, 3) pixel coordinates and z (T, 3) depths of the corners -> triangle id and barycentrics per pixel."""
+    n_pix = res * res
+    area = (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (x[:, 2] - x[:, 0]) * (y[:, 1] - y[:, 0])
+    ok = (area.abs() > 1e-12) & (z > 1e-6).all(1)
+    i0 = (x.min(1).values - 0.5).ceil().clamp(0, res).long()
+    i1 = (x.max(1).values - 0.5).floor().clamp(-1, res - 1).long()
+    j0 = (y.min(1).values - 0.5).ceil().clamp(0, res).long()
+    j1 = (y.max(1).values - 0.5).floor().clamp(-1, res - 1).long()
+    w, h = (i1 - i0 + 1).clamp(min=0) * ok, (j1 - j0 + 1).clamp(min=0) * ok
+    count = w * h
+    t = torch.repeat_interleave(torch.arange(len(x)), count)
+    k = torch.arange(len(t)) - torch.repeat_interleave(count.cumsum(0) - count, count)
+    px = (i0[t] + k % w[t].clamp(min=1)).double() + 0.5
+    py = (j0[t] + k // w[t].clamp(min=1)).double() + 0.5
+    xt, yt, zt = x[t], y[t], z[t]
+    w0 = ((xt[:, 1] - px) * (yt[:, 2] - py) - (xt[:, 2] - px) * (yt[:, 1] - py)) / area[t]
+    w1 = ((xt[:, 2] - px) * (yt[:, 0] - py) - (xt[:, 0] - px) * (yt[:, 2] - py)) / area[t]
+    w2 = 1.0 - w0 - w1
+    inside = (w0 >= 0) & (w1 >= 0) & (w2 >= 0)
+    b = torch.stack([w0 / zt[:, 0], w1 / zt[:, 1], w2 / zt[:, 2]], -1)[inside]  # perspective correction
+    inv_z = b.sum(-1)
+    b = b / inv_z[:, None]
+    t, pix = t[inside], (py[inside].long() * res + px[inside].long())
+    d = 1.0 / inv_z
+    nearest = torch.full((n_pix,), math.inf, dtype=torch.float64).scatter_reduce(0, pix, d, "amin")
+    front = d == nearest[pix]
+    winner = torch.full((n_pix,), -1, dtype=torch.int64).scatter_reduce(0, pix[front], t[front], "amax")
+    chosen = front & (t == winner[pix])
+    bary = torch.zeros(n_pix, 3, dtype=torch.float64)
+    bary[pix[chosen]] = b[chosen]
+    return winner, bary
 
 
 def sample_texture(texture: np.ndarray, uv: Tensor) -> Tensor:
