@@ -29,6 +29,7 @@ COMMANDS: dict[str, str] = {
     "train-decoder": "torch_models.cli_train_decoder",
     "fit": "torch_models.cli_fit",
     "train-generator": "torch_models.cli_train_generator",
+    "generate": "torch_models.cli_generate",
 }
 
 

@@ -1,0 +1,78 @@
+"""`generate`: prompt keywords, mesh input, and the whole command on a tiny checkpoint."""
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from torch_models.cli import main
+from torch_models.generator.prompt import prompt_type
+from torch_models.neural.fit import read_exr
+
+torch.set_num_threads(1)
+GLB = Path(__file__).parent / "data" / "generator_batch" / "cone_metal_2.glb"
+
+
+def test_prompt_keywords_name_the_enhancement_type():
+    assert prompt_type("a dusty copper kettle")[0] == 1
+    assert prompt_type("red car paint with a thick glossy clear coat")[0] == 2
+    assert prompt_type("old lacquered box covered in dust")[0] == 3
+    assert prompt_type("soft velvet cushion")[0] == 4
+    assert prompt_type("waxy candle with a glaze")[0] == 5
+    assert prompt_type("velvet", metallic=True)[0] == 1  # no fuzz on metals, as the enhancer
+    type_, warnings = prompt_type("something shiny")
+    assert type_ == 0 and "no enhancement keyword" in warnings[0]
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory):
+    root = tmp_path_factory.mktemp("gen_ckpt")
+    cfg = {"model": {"size": 16, "patch": 4, "dim": 32, "depth": 1, "heads": 2},
+           "corpus": {"dir": "corpus", "procedural": 2, "views": 2, "resolution": 16, "texture_size": 16},
+           "steps": 3, "batch": 2, "warmup": 1, "checkpoint_every": 3, "threads": 1}
+    (root / "tiny.json").write_text(json.dumps(cfg))
+    try:
+        assert main(["train-generator", "--config", str(root / "tiny.json"), "--out", str(root / "run")]) == 0
+    except FileNotFoundError as exc:
+        pytest.skip(str(exc))
+    return root / "run"
+
+
+def test_generate_writes_latent_textures_and_a_preview(checkpoint, tmp_path):
+    out = tmp_path / "out"
+    args = [str(GLB), "--prompt", "white silver metal with light dust", "--out", str(out), "--views", "3",
+            "--steps", "2", "--texture-size", "32", "--checkpoint", str(checkpoint)]
+    assert main(["generate", *args]) == 0
+    a, b = read_exr(out / "latent_0.exr"), read_exr(out / "latent_1.exr")
+    assert a.shape == b.shape == (32, 32, 3)
+    assert np.isfinite(a).all() and np.abs(np.concatenate([a, b], -1)).max() <= 1.0 + 1e-3
+    record = json.loads((out / "neural.json").read_text())
+    assert record["type"] == 1 and record["views"] == 3
+    share = record["projection"]
+    assert share["seen"] > 0 and share["seen"] + share["inpainted"] + share["fallback"] == pytest.approx(1.0)
+    with Image.open(out / "preview.png") as im:
+        assert im.size == (4 * 128, 128)
+        assert np.asarray(im).max() > 0  # the object is lit
+    again = tmp_path / "again"
+    assert main(["generate", *args[:4], str(again), *args[5:], "--no-preview"]) == 0
+    assert np.array_equal(read_exr(again / "latent_0.exr"), a)  # deterministic per seed
+
+
+def test_mesh_without_uvs_is_unwrapped(checkpoint, tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    obj = tmp_path / "ball.obj"
+    trimesh.creation.icosphere(subdivisions=2).export(str(obj))
+    out = tmp_path / "out"
+    assert main(["generate", str(obj), "--prompt", "plastic ball", "--out", str(out), "--views", "2", "--steps", "1",
+                 "--texture-size", "16", "--checkpoint", str(checkpoint), "--no-preview"]) == 0
+    record = json.loads((out / "neural.json").read_text())
+    assert any("xatlas" in n for n in record["notes"]) and record["type"] == 0 and record["warnings"]
+    mesh = trimesh.load(out / "mesh.glb", force="mesh")
+    assert mesh.visual.uv is not None and len(mesh.visual.uv) == len(mesh.vertices)
+
+
+def test_missing_checkpoint_is_bad_input(tmp_path):
+    assert main(["generate", str(GLB), "--prompt", "x", "--out", str(tmp_path / "o"),
+                 "--checkpoint", str(tmp_path / "none")]) == 2

@@ -1,0 +1,94 @@
+"""Generate a neural material for a mesh from a text prompt (paper sec. 5.2).
+
+Renders V orbit views of the mesh's normals, positions and base colour, samples
+the 6 latent channels of every view with the trained multi-view diffusion model
+(conditioned on the views, the prompt's MiniLM embedding and the enhancement type
+its keywords name), and projects the views into the mesh's texture space. A mesh
+without UVs is unwrapped with xatlas (OUT/mesh.glb then holds the new UVs).
+
+Writes OUT/latent_0.exr and OUT/latent_1.exr (latent channels 0-2 and 3-5, the
+layout ``fit`` writes), OUT/base_color.exr, OUT/neural.json (prompt, type, seed,
+steps, views, coverage of the projection, warnings, timings) and
+OUT/preview.png (the mesh rendered with the generated material).
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+HELP = "generate the latent textures of a neural material for a mesh from a text prompt"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("mesh", type=Path, help="a mesh file (GLB, glTF, OBJ, PLY, ...)")
+    parser.add_argument("--prompt", required=True, help='what the material looks like ("dusty copper, light dust")')
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--seed", type=int, default=0, help="sampling seed (default: 0)")
+    parser.add_argument("--steps", type=int, default=18, help="Heun sampling steps (default: 18)")
+    parser.add_argument("--views", type=int, default=8, help="orbit views generated (default: 8)")
+    parser.add_argument("--guidance", type=float, default=2.0, help="classifier-free guidance scale (default: 2)")
+    parser.add_argument("--texture-size", type=int, default=64, help="latent texture size in texels (default: 64)")
+    parser.add_argument("--checkpoint", type=Path, default=None,
+                        help="a train-generator run folder (default: the shipped generator)")
+    parser.add_argument("--no-preview", action="store_true", help="skip the preview render")
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+
+    import numpy as np
+
+    from .cli import InputError, atomic_path
+    from .cli_enhance import write_exr
+    from .generator import generate as gen
+    from .generator.mesh_input import load_mesh
+
+    if not args.mesh.is_file():
+        raise InputError(f"{args.mesh}: no such file")
+    if args.steps < 1 or args.views < 1 or args.texture_size < 8:
+        raise InputError("--steps and --views must be >= 1 and --texture-size >= 8")
+    try:
+        model, cfg = gen.load_generator(args.checkpoint or gen.SHIPPED)
+        inp = load_mesh(args.mesh)
+    except (FileNotFoundError, ValueError) as exc:
+        raise InputError(str(exc)) from None
+    result = gen.generate(inp, args.prompt, model, cfg, args.seed, args.steps, args.views, args.guidance,
+                          args.texture_size)
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_exr(args.out / "latent_0.exr", result.latents[..., :3])
+    write_exr(args.out / "latent_1.exr", result.latents[..., 3:])
+    write_exr(args.out / "base_color.exr", inp.base_color)
+    if not inp.had_uvs:
+        _write_unwrapped(inp, args.out / "mesh.glb")
+    record = {"prompt": args.prompt, "type": result.type, "seed": args.seed, "steps": args.steps,
+              "views": args.views, "guidance": args.guidance, "texture_size": args.texture_size,
+              "projection": result.projection.stats(result.charts), "warnings": result.warnings,
+              "notes": inp.notes, "seconds": result.seconds, "energy_scale": 1.0,
+              "checkpoint": str(args.checkpoint or gen.SHIPPED)}
+    if not args.no_preview:
+        from .render.tonemap import agx, to_png
+
+        frames = gen.preview(inp, result.latents)
+        to_png(np.concatenate(list(agx(frames)), 1), args.out / "preview.png")
+    with atomic_path(args.out / "neural.json") as tmp:
+        tmp.write_text(json.dumps(record, indent=1))
+    for w in result.warnings:
+        print(f"warning: {w}")
+    print(f"type {result.type}; {record['projection']['seen']:.0%} of the texels seen, "
+          f"{record['projection']['inpainted']:.0%} inpainted, {record['projection']['fallback']:.0%} fallback; "
+          f"wrote {args.out}")
+    return 0
+
+
+def _write_unwrapped(inp, path: Path) -> None:  # inp: MeshInput
+    """The unwrapped mesh (Y up again, as glTF wants), so the latent textures have the UVs they belong to."""
+    import numpy as np
+    import trimesh
+
+    def y_up(a: np.ndarray) -> np.ndarray:
+        return np.stack([a[:, 0], a[:, 2], -a[:, 1]], 1)
+
+    uv = inp.mesh.uvs.copy()
+    uv[:, 1] = 1.0 - uv[:, 1]
+    trimesh.Trimesh(y_up(inp.mesh.positions), inp.mesh.faces, vertex_normals=y_up(inp.mesh.normals),
+                    visual=trimesh.visual.TextureVisuals(uv=uv), process=False).export(str(path))

@@ -1,0 +1,127 @@
+"""Text + mesh -> neural material: condition views, diffusion sampling, projection to texture space."""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from safetensors.torch import load_file
+from torch import Tensor
+
+from richmat_addon.core.maps import PbrInputs, ParamMap
+from richmat_addon.core.uv_raster import rasterize as uv_rasterize
+from . import text
+from .dit import Conditions, LatentGenerator
+from .mesh_input import MeshInput
+from .projection import Projection, project
+from .prompt import prompt_type
+from .train import GeneratorTrainConfig
+from .views import IntrinsicViews, orbit_cameras, render_intrinsics
+
+SHIPPED = Path(__file__).resolve().parent / "weights"
+PROJECTION_UPSAMPLE = 4  # generated views are upsampled this much before splatting, so texels get dense samples
+
+
+def load_generator(folder: Path = SHIPPED) -> tuple[LatentGenerator, GeneratorTrainConfig]:
+    """A trained generator (weights.safetensors + state.json of a train-generator run), in eval mode."""
+    weights, state = folder / "weights.safetensors", folder / "state.json"
+    if not weights.is_file() or not state.is_file():
+        raise FileNotFoundError(f"{folder}: no trained generator here (weights.safetensors, state.json); "
+                                "run `python -m torch_models train-generator` first")
+    cfg = GeneratorTrainConfig.from_dict(json.loads(state.read_text())["config"])
+    model = LatentGenerator(cfg.model)
+    model.load_state_dict(load_file(str(weights)))
+    return model.eval().requires_grad_(False), cfg
+
+
+def diffuse_fallback_latent() -> Tensor:
+    """(6,) the shipped encoder's latent of a plain rough dielectric: what unseen UV islands get."""
+    from richmat_addon.core.enhance import baseline
+    from ..neural import weights
+    from .corpus import pack_vectors
+
+    plain = baseline(PbrInputs("fallback", ParamMap.constant(0.8, 0.8, 0.8), ParamMap.constant(1.0),
+                               ParamMap.constant(0.0)))
+    with torch.no_grad():
+        return weights.load().encoder(torch.from_numpy(pack_vectors(plain, (1, 1))))[0]
+
+
+@dataclass
+class Generation:
+    latents: np.ndarray  # (H, W, 6) texture
+    projection: Projection
+    charts: Tensor
+    type: int
+    warnings: list[str] = field(default_factory=list)
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def _upsample(values: Tensor, coverage: Tensor, factor: int) -> Tensor:
+    """(V, H, W, C) values at `factor` x the resolution, bilinear over covered pixels only."""
+    cov = (coverage > 0.5).float()[:, None]
+    up = lambda x: torch.nn.functional.interpolate(x, scale_factor=factor, mode="bilinear", align_corners=False)
+    num, den = up(values.permute(0, 3, 1, 2) * cov), up(cov)
+    return (num / den.clamp(min=1e-6)).permute(0, 2, 3, 1)
+
+
+def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: GeneratorTrainConfig, seed: int = 0,
+             steps: int = 18, views: int = 8, guidance: float = 2.0, texture_size: int = 64) -> Generation:
+    times: dict[str, float] = {}
+    t0 = time.perf_counter()
+    type_, warnings = prompt_type(prompt, metallic=False)
+    res = cfg.model.size
+    cams = orbit_cameras(views, res)
+    cond_views = render_intrinsics(inp.mesh, cams, inp.base_color, supersample=cfg.corpus.supersample)
+    inside = (cond_views.coverage > 0.5).float()
+    c = cond_views.conditions()
+    c = torch.cat([c[:, :9] * inside[:, None], inside[:, None]], 1)
+    cond = Conditions(c[None], text.embed([prompt]), torch.tensor([type_]))
+    times["condition_views"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    generated = model.sample(cond, steps, seed, guidance)[0].clamp(-1.0, 1.0)  # the encoder's latent box
+    times["sampling"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    fine_cams = orbit_cameras(views, res * PROJECTION_UPSAMPLE)
+    fine = render_intrinsics(inp.mesh, fine_cams, inp.base_color)
+    values = _upsample(generated.permute(0, 2, 3, 1), cond_views.coverage, PROJECTION_UPSAMPLE)
+    raster, reason = uv_rasterize(inp.mesh.positions, inp.mesh.normals, inp.mesh.uvs, inp.mesh.faces,
+                                  (texture_size, texture_size), padding=0)
+    if raster is None:
+        raise ValueError(f"cannot project into the mesh's texture space: {reason}")
+    charts = torch.from_numpy(raster.coverage)
+    proj = project(values * (fine.coverage > 0.5)[..., None], fine, fine_cams, charts, diffuse_fallback_latent())
+    times["projection"] = time.perf_counter() - t0
+    stats = proj.stats(charts)
+    if stats["fallback"] > 0.05:
+        warnings.append(f"{stats['fallback']:.0%} of the texels lie on UV islands no view saw: "
+                        "they got the diffuse fallback (more --views may help)")
+    return Generation(proj.texture.numpy(), proj, charts, type_, warnings, times)
+
+
+def preview(inp: MeshInput, latents: np.ndarray, frames: int = 4, resolution: int = 128, spp: int = 16) -> np.ndarray:
+    """Scene-linear renders (frames, H, W, 3) of the mesh with the baked latents, lit by the default probe.
+
+    G-buffer shading (no shadows, no interreflection), the same as the neural material's ball preview."""
+    from ..neural import weights
+    from ..neural.bsdf import NeuralBsdf
+    from ..neural.evaluate import DEFAULT_PROBE
+    from ..render.ball import shade_gbuffer
+    from ..render.envmap import EnvMap
+
+    model = weights.load()
+    env = EnvMap.load(DEFAULT_PROBE)
+    cams = orbit_cameras(frames, resolution)
+    iv: IntrinsicViews = render_intrinsics(inp.mesh, cams, inp.base_color, latents)
+    out = []
+    for f in range(frames):
+        mask = (iv.coverage[f] > 0.5).numpy()
+        to_cam = cams.origins[f].float() - iv.positions[f]
+        to_cam = (to_cam / to_cam.norm(dim=-1, keepdim=True).clamp(min=1e-12)).numpy()
+        lat = iv.latents[f].numpy().reshape(-1, 6)[mask.ravel()]
+        base = iv.base_color[f].numpy().reshape(-1, 3)[mask.ravel()]
+        bsdf = NeuralBsdf(model, torch.from_numpy(lat), torch.from_numpy(base))
+        out.append(shade_gbuffer(lambda n: bsdf, env, iv.normals[f].numpy(), to_cam, mask, spp=spp, seed=f))
+    return np.stack(out)
