@@ -117,6 +117,7 @@ def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int 
 
 
 VIEW_COSINES = (1.0, 0.7, 0.4, 0.15, 0.05)
+SCALE_STEP = 1.0 / 1024  # grid of the energy scale (a power of two: exact in float32)
 
 
 @dataclass
@@ -143,13 +144,15 @@ class Furnace:
         At an angle, s F + T <= 1 needs s <= (1 - T) / F with F = albedo - T. F is
         taken at its upper 3-sigma bound, so a fresh estimate of the repaired
         albedo stays below 1 too; the smallest bound over the failing angles wins
-        (1 where none fails).
+        (1 where none fails). Rounded down to a multiple of ``SCALE_STEP``: float
+        noise in the estimate (thread scheduling, batch shapes) then leaves the
+        written scale map bit-identical across runs, and rounding down keeps it safe.
         """
         over = self.albedos > 1.0 + 3.0 * self.std_errors
         upper = self.albedos + 3.0 * self.std_errors - self.transmissions
         bound = (1.0 - self.transmissions) / upper.clamp(min=1e-6)
         bound = torch.where(over, bound.clamp(0.0, 1.0), torch.ones_like(bound))
-        return bound.min(1).values
+        return torch.floor(bound.min(1).values / SCALE_STEP) * SCALE_STEP
 
 
 def furnace(model: NeuralModel, z: Tensor, n: int = 1024, seed: int = 0,
