@@ -56,14 +56,16 @@ def render_cycles(all_cases: list[Case], probe: Path, resolution: int, samples: 
 
 
 def reused_cycles(folder: Path, all_cases: list[Case], probe: Path, resolution: int, samples: int,
-                  seed: int) -> dict[str, float]:
-    """Cycles render times of an earlier run in ``folder``, after checking it rendered these very cases."""
-    job = json.loads((folder / "job.json").read_text())
+                  seed: int) -> dict[str, float] | None:
+    """Cycles render times of an earlier run in ``folder`` if it finished rendering these very cases."""
+    try:
+        job = json.loads((folder / "job.json").read_text())
+        times = json.loads((folder / "cycles_times.json").read_text())
+    except (OSError, ValueError):
+        return None
     same = (job["cases"] == [asdict(c) for c in all_cases] and job["resolution"] == resolution
             and job["samples"] == samples and job["seed"] == seed and Path(job["probe"]) == probe)
-    if not same or not (folder / "cycles_times.json").is_file():
-        raise SystemExit(f"{folder}: not a finished Cycles run of these cases and settings")
-    return json.loads((folder / "cycles_times.json").read_text())
+    return times if same else None
 
 
 def read_exr(path: Path) -> np.ndarray:
@@ -121,9 +123,10 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None,
                         help="report JSON (default: docs/agreement[_quick].json); chart and sheet beside it")
     parser.add_argument("--probe", type=Path, default=DEFAULT_PROBE, help="equirectangular HDR probe")
-    parser.add_argument("--reuse-cycles", type=Path, default=None, metavar="DIR",
-                        help="score against the Cycles renders an earlier run of the same settings left in DIR "
-                             "(its job.json must match), e.g. after changing only the torch side")
+    parser.add_argument("--cycles-dir", type=Path, default=None, metavar="DIR",
+                        help="keep the Cycles renders in DIR; if DIR already holds a finished run of the same "
+                             "cases and settings, score against it instead of rendering again "
+                             "(default: a temporary folder)")
     args = parser.parse_args()
 
     mode = "quick" if args.quick else "full"
@@ -136,12 +139,14 @@ def main() -> None:
     start = time.perf_counter()
     rows, images = [], []
     with tempfile.TemporaryDirectory(prefix="richmat_agreement_") as fresh:
-        tmp = args.reuse_cycles or Path(fresh)
-        if args.reuse_cycles:
-            cycles_times = reused_cycles(args.reuse_cycles, all_cases, args.probe, resolution, samples, args.seed)
-        else:
+        tmp = args.cycles_dir or Path(fresh)
+        tmp.mkdir(parents=True, exist_ok=True)
+        cycles_times = reused_cycles(tmp, all_cases, args.probe, resolution, samples, args.seed)
+        if cycles_times is None:
             print(f"Cycles: {len(all_cases)} cases at {resolution}px, {samples} spp ...", flush=True)
             cycles_times = render_cycles(all_cases, args.probe, resolution, samples, args.seed, tmp)
+        else:
+            print(f"Cycles: reusing the finished renders in {tmp}", flush=True)
         for case in all_cases:
             bsdf = torch_bsdf(case)
             result = render_ball(lambda n, b=bsdf: b, env, scene, spp, args.seed)
