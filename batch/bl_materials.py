@@ -16,9 +16,8 @@ import numpy as np
 
 from richmat_addon.core.gltf_materials import srgb_to_linear
 from richmat_addon.core.maps import ParamMap, PbrInputs
-from richmat_addon.core.uv_raster import rasterize
 
-from .bl_scene import mesh_objects, world_vertices
+from .bl_scene import mesh_objects
 
 MAX_UNWRAP_FACES = 200_000  # xatlas time grows fast; bigger meshes are recorded instead
 DEFAULT_MATERIAL = "richmat_default"
@@ -150,41 +149,7 @@ def _xatlas_unwrap(mesh: bpy.types.Mesh, xatlas) -> None:  # type: ignore[no-unt
     layer.data.foreach_set("uv", uvs[indices.reshape(-1)].astype(np.float32).ravel())
 
 
-def world_maps(mat: bpy.types.Material, size: tuple[int, int]
-               ) -> tuple[ParamMap | None, ParamMap | None, str | None]:
-    """World normals and positions of the surfaces using ``mat``, in its texture space."""
-    positions, normals, uvs, tris, offset = [], [], [], [], 0
-    for obj in mesh_objects():
-        mesh = obj.data
-        slots = [i for i, s in enumerate(obj.material_slots) if s.material == mat]
-        if not slots or not mesh.uv_layers:
-            continue
-        mesh.calc_loop_triangles()
-        n = len(mesh.loop_triangles)
-        loops = np.empty(n * 3, np.int32)
-        mesh.loop_triangles.foreach_get("loops", loops)
-        mat_index = np.empty(n, np.int32)
-        mesh.loop_triangles.foreach_get("material_index", mat_index)
-        loops = loops.reshape(-1, 3)[np.isin(mat_index, slots)].ravel()
-        vert = np.empty(len(mesh.loops), np.int32)
-        mesh.loops.foreach_get("vertex_index", vert)
-        nrm = np.empty(len(mesh.loops) * 3, np.float32)
-        mesh.corner_normals.foreach_get("vector", nrm)
-        uv = np.empty(len(mesh.loops) * 2, np.float32)
-        mesh.uv_layers.active.data.foreach_get("uv", uv)
-        m = np.array(obj.matrix_world, np.float64)
-        normal_matrix = np.linalg.inv(m[:3, :3]).T
-        world_n = nrm.reshape(-1, 3)[loops] @ normal_matrix.T
-        positions.append(world_vertices(obj)[vert[loops]])
-        normals.append(world_n / np.maximum(np.linalg.norm(world_n, axis=1, keepdims=True), 1e-12))
-        uvs.append(uv.reshape(-1, 2)[loops])
-        tris.append(np.arange(len(loops)).reshape(-1, 3) + offset)
-        offset += len(loops)
-    if not tris:
-        return None, None, "no mesh with UVs uses this material"
-    raster, reason = rasterize(np.concatenate(positions).astype(np.float32),
-                               np.concatenate(normals).astype(np.float32), np.concatenate(uvs),
-                               np.concatenate(tris), size, flip_v=True)
-    if raster is None:
-        return None, None, reason
-    return ParamMap(raster.normals), ParamMap(raster.positions), None
+def material_surfaces(mat: bpy.types.Material) -> list[tuple[bpy.types.Object, list[int]]]:
+    """Every mesh object using ``mat`` and its slots holding it: together they fill its texture space."""
+    surfaces = [(o, [i for i, s in enumerate(o.material_slots) if s.material == mat]) for o in mesh_objects()]
+    return [(o, slots) for o, slots in surfaces if slots]

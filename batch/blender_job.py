@@ -35,6 +35,7 @@ UNTEXTURED_DUST_SIZE = 256  # texture size for dust masks of a material without 
 
 
 def prepare(args: argparse.Namespace) -> None:
+    from richmat_addon.blender import mesh_maps
     from richmat_addon.core.enhance import enhance, is_metallic
     from torch_models.cli_enhance import safe_name, write_material
 
@@ -58,7 +59,7 @@ def prepare(args: argparse.Namespace) -> None:
         if type_ in DUST_TYPES:
             sizes = [m.shape for m in (source.pbr.base_color, source.pbr.roughness, source.pbr.metalness) if m.shape]
             size = max(sizes, key=lambda s: s[0] * s[1]) if sizes else (min(UNTEXTURED_DUST_SIZE, args.max_texture),) * 2
-            normals, positions, world_note = bl_materials.world_maps(mat, size)
+            normals, positions, world_note = mesh_maps.world_maps(bl_materials.material_surfaces(mat), size)
         enhanced = enhance(source.pbr, type_, args.seed, world_normals=normals, world_positions=positions)
         folder = args.work / "materials" / safe_name(mat.name, taken)
         write_material(folder, enhanced, {"asset": args.asset.name, "material": mat.name, "type_note": type_note})

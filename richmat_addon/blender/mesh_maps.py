@@ -1,11 +1,14 @@
-"""World normals and positions of an object's surface in a material's texture space.
+"""World normals and positions of a material's surfaces in its texture space.
 
 Dust settles on upward-facing surfaces, so its weight needs each texel's world
 normal (and position, for the triplanar masks). The object's evaluated mesh is
-read with ``foreach_get`` (loop triangles of the material's slot, corner normals,
-the active render UV map) and rasterised by ``core.uv_raster``.
+read with ``foreach_get`` (loop triangles of the material's slots, corner normals,
+the active render UV map) and rasterised by ``core.uv_raster``. Used by the
+add-on's Uplift/Bake and by ``batch/``.
 """
 from __future__ import annotations
+
+from collections.abc import Collection, Iterable
 
 import bpy
 import numpy as np
@@ -22,25 +25,27 @@ def _render_uv(mesh: bpy.types.Mesh) -> bpy.types.MeshUVLoopLayer:
     return next((uv for uv in mesh.uv_layers if uv.active_render), mesh.uv_layers[0])
 
 
-def world_maps(obj: bpy.types.Object, slot_index: int, size: tuple[int, int]
-               ) -> tuple[ParamMap | None, ParamMap | None, str | None]:
-    """(normals, positions, None), or (None, None, reason) when there is no texture space."""
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    evaluated = obj.evaluated_get(depsgraph)
+def _triangles(obj: bpy.types.Object, slots: Collection[int]
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """World positions, unit world normals and UVs of the triangle corners (T*3) in ``slots``.
+
+    None when the object has no UV map or no face in those slots. The evaluated
+    mesh is read (what Cycles renders, modifiers applied) with its render UV map.
+    """
+    evaluated = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
     mesh = evaluated.to_mesh()
     try:
         if not mesh.uv_layers:
-            return None, None, f"{obj.name!r} has no UV map"
+            return None
         mesh.calc_loop_triangles()
         n_tris = len(mesh.loop_triangles)
         loops = np.empty(n_tris * 3, np.int32)
         mesh.loop_triangles.foreach_get("loops", loops)
         mat_index = np.empty(n_tris, np.int32)
         mesh.loop_triangles.foreach_get("material_index", mat_index)
-        keep = np.repeat(mat_index == slot_index, 3)
-        loops = loops[keep]
+        loops = loops[np.repeat(np.isin(mat_index, list(slots)), 3)]
         if not len(loops):
-            return None, None, f"no face of {obj.name!r} uses slot {slot_index}"
+            return None
         vert_of_loop = np.empty(len(mesh.loops), np.int32)
         mesh.loops.foreach_get("vertex_index", vert_of_loop)
         co = np.empty(len(mesh.vertices) * 3, np.float32)
@@ -53,12 +58,24 @@ def world_maps(obj: bpy.types.Object, slot_index: int, size: tuple[int, int]
         evaluated.to_mesh_clear()
     matrix = np.array(obj.matrix_world, np.float64)
     pos = co.reshape(-1, 3)[vert_of_loop[loops]] @ matrix[:3, :3].T + matrix[:3, 3]
-    normal_matrix = np.linalg.inv(matrix[:3, :3]).T
-    nrm = normals.reshape(-1, 3)[loops] @ normal_matrix.T
+    nrm = normals.reshape(-1, 3)[loops] @ np.linalg.inv(matrix[:3, :3])  # inverse transpose, row vectors
     nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
-    indices = np.arange(len(loops), dtype=np.int64).reshape(-1, 3)
-    raster, reason = rasterize(pos.astype(np.float32), nrm.astype(np.float32),
-                               uvs.reshape(-1, 2)[loops], indices, size, flip_v=True)
+    return pos, nrm, uvs.reshape(-1, 2)[loops]
+
+
+def world_maps(surfaces: Iterable[tuple[bpy.types.Object, Collection[int]]], size: tuple[int, int]
+               ) -> tuple[ParamMap | None, ParamMap | None, str | None]:
+    """(normals, positions, None) of the faces in the given (object, material slots), or (None, None, reason).
+
+    The add-on passes the one slot it enhances; the batch passes every object
+    using a material, since they all share its texture space.
+    """
+    parts = [t for t in (_triangles(obj, slots) for obj, slots in surfaces) if t is not None]
+    if not parts:
+        return None, None, "no face with a UV map uses this material"
+    pos, nrm, uv = (np.concatenate(column) for column in zip(*parts))
+    indices = np.arange(len(pos), dtype=np.int64).reshape(-1, 3)
+    raster, reason = rasterize(pos.astype(np.float32), nrm.astype(np.float32), uv, indices, size, flip_v=True)
     if raster is None:
         return None, None, reason
     return ParamMap(raster.normals), ParamMap(raster.positions), None

@@ -86,7 +86,7 @@ def enhance_slot(p: SlotPlan, requested: str, seed: int, max_size: int | None) -
     normals = positions = None
     size = _texture_size(pbr)
     if type_ in DUST_TYPES and size is not None and mesh_maps.has_uvs(p.obj):
-        normals, positions, _ = mesh_maps.world_maps(p.obj, p.slot_index, size)
+        normals, positions, _ = mesh_maps.world_maps([(p.obj, [p.slot_index])], size)
     return enhance(pbr, type_, seed, world_normals=normals, world_positions=positions)
 
 
