@@ -8,7 +8,7 @@ import torch
 from PIL import Image
 
 from torch_models.cli import main
-from torch_models.generator.prompt import prompt_type
+from richmat_addon.core.prompt import prompt_type
 from torch_models.neural.fit import read_exr
 
 torch.set_num_threads(1)

@@ -56,6 +56,13 @@ def atomic_path(path: Path) -> Iterator[Path]:
         tmp.unlink(missing_ok=True)
 
 
+def emit(event: str, **fields: object) -> None:
+    """One JSON-lines protocol event on stdout (the Blender add-on reads them, docs/addon.md)."""
+    import json
+
+    print(json.dumps({"event": event, **fields}), flush=True)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")

@@ -38,16 +38,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="a progress bar (default) or JSON lines on stdout (for the Blender add-on)")
 
 
-def _emit(event: str, **fields: object) -> None:
-    print(json.dumps({"event": event, **fields}), flush=True)
-
-
 def run(args: argparse.Namespace) -> int:
     import torch
     from safetensors.torch import load_file, save_file
     from tqdm import tqdm
 
-    from .cli import InputError, atomic_path
+    from .cli import InputError, atomic_path, emit
     from .neural import fit, weights
 
     jsonl = args.progress == "jsonl"
@@ -56,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
         model = weights.load(args.weights or weights.SHIPPED)
     except (ValueError, FileNotFoundError, KeyError) as exc:
         if jsonl:
-            _emit("error", message=str(exc))
+            emit("error", message=str(exc))
         raise InputError(str(exc)) from None
     args.out.mkdir(parents=True, exist_ok=True)
     state = args.out / "fit_state.safetensors"
@@ -71,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
         bar.update(1)
         bar.set_postfix(loss=f"{loss:.4f}")
         if jsonl:
-            _emit("progress", step=done + step + 1, total=args.steps, loss=loss)
+            emit("progress", step=done + step + 1, total=args.steps, loss=loss)
 
     with tqdm(total=args.steps, initial=done, desc=f"fit {len(mv.unique)} vectors", unit="step",
               disable=jsonl) as bar:
@@ -91,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
         tmp.write_text(json.dumps(record, indent=1, sort_keys=True))
     state.unlink(missing_ok=True)
     if jsonl:
-        _emit("done", out=str(args.out), files=sorted(f.name for f in args.out.iterdir() if f.is_file()))
+        emit("done", out=str(args.out), files=sorted(f.name for f in args.out.iterdir() if f.is_file()))
         return 0
     print(f"fitted {len(mv.unique)} vectors ({mv.exact_unique} exact) for {record['texels']} texels; "
           f"furnace: {record['furnace']['passed']}/{len(z)} pass; wrote {args.out}")

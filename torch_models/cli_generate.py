@@ -10,6 +10,13 @@ Writes OUT/latent_0.exr and OUT/latent_1.exr (latent channels 0-2 and 3-5, the
 layout ``fit`` writes), OUT/base_color.exr, OUT/neural.json (prompt, type, seed,
 steps, views, coverage of the projection, warnings, timings) and
 OUT/preview.png (the mesh rendered with the generated material).
+
+``--material DIR`` takes the base colour from a baked enhanced-material folder
+(params.json, as the add-on's Bake writes it) instead of the mesh file, so the
+latents belong to the base colour the neural preview will use. ``--progress
+jsonl`` speaks the add-on's protocol (as ``fit`` does): ``{"event": "progress",
+"step", "total"}`` per sampling step, then ``{"event": "done", "out", "files",
+"type", "warnings"}``; bad input is ``{"event": "error", "message"}``, exit code 2.
 """
 from __future__ import annotations
 
@@ -31,6 +38,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint", type=Path, default=None,
                         help="a train-generator run folder (default: the shipped generator)")
     parser.add_argument("--no-preview", action="store_true", help="skip the preview render")
+    parser.add_argument("--material", type=Path, default=None,
+                        help="a baked enhanced-material folder whose base colour replaces the mesh file's")
+    parser.add_argument("--progress", choices=("bar", "jsonl"), default="bar",
+                        help="messages for people (default) or JSON lines on stdout (for the Blender add-on)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -38,22 +49,33 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from .cli import InputError, atomic_path
+    from .cli import InputError, atomic_path, emit
     from .cli_enhance import write_exr
     from .generator import generate as gen
-    from .generator.mesh_input import load_mesh
+    from .generator.mesh_input import baked_base_color, load_mesh
+    from .neural import weights
 
-    if not args.mesh.is_file():
-        raise InputError(f"{args.mesh}: no such file")
-    if args.steps < 1 or args.views < 1 or args.texture_size < 8:
-        raise InputError("--steps and --views must be >= 1 and --texture-size >= 8")
+    jsonl = args.progress == "jsonl"
     try:
+        if not args.mesh.is_file():
+            raise InputError(f"{args.mesh}: no such file")
+        if args.steps < 1 or args.views < 1 or args.texture_size < 8:
+            raise InputError("--steps and --views must be >= 1 and --texture-size >= 8")
         model, cfg = gen.load_generator(args.checkpoint or gen.SHIPPED)
         inp = load_mesh(args.mesh)
-    except (FileNotFoundError, ValueError) as exc:
+        if args.material is not None:
+            inp.base_color = baked_base_color(args.material)
+        decoder = weights.load()
+    except (InputError, FileNotFoundError, ValueError, KeyError) as exc:
+        if jsonl:
+            emit("error", message=str(exc))
         raise InputError(str(exc)) from None
+
+    def progress(step: int, total: int) -> None:
+        emit("progress", step=step, total=total)
+
     result = gen.generate(inp, args.prompt, model, cfg, args.seed, args.steps, args.views, args.guidance,
-                          args.texture_size)
+                          args.texture_size, progress if jsonl else None)
     args.out.mkdir(parents=True, exist_ok=True)
     write_exr(args.out / "latent_0.exr", result.latents[..., :3])
     write_exr(args.out / "latent_1.exr", result.latents[..., 3:])
@@ -64,7 +86,9 @@ def run(args: argparse.Namespace) -> int:
               "views": args.views, "guidance": args.guidance, "texture_size": args.texture_size,
               "projection": result.projection.stats(result.charts), "warnings": result.warnings,
               "notes": inp.notes, "seconds": result.seconds, "energy_scale": 1.0,
-              "checkpoint": str(args.checkpoint or gen.SHIPPED)}
+              "checkpoint": str(args.checkpoint or gen.SHIPPED),
+              "material": str(args.material) if args.material is not None else None,
+              "decoder_sha256": decoder.digest}
     if not args.no_preview:
         from .render.tonemap import agx, to_png
 
@@ -72,6 +96,10 @@ def run(args: argparse.Namespace) -> int:
         to_png(np.concatenate(list(agx(frames)), 1), args.out / "preview.png")
     with atomic_path(args.out / "neural.json") as tmp:
         tmp.write_text(json.dumps(record, indent=1))
+    if jsonl:
+        emit("done", out=str(args.out), files=sorted(f.name for f in args.out.iterdir() if f.is_file()),
+             type=result.type, warnings=result.warnings)
+        return 0
     for w in result.warnings:
         print(f"warning: {w}")
     print(f"type {result.type}; {record['projection']['seen']:.0%} of the texels seen, "

@@ -15,6 +15,7 @@ classifier-free guidance.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import Callable
 
 import torch
 from torch import Tensor, nn
@@ -161,7 +162,8 @@ class LatentGenerator(nn.Module):
         return edm.weighted_loss(x0, x0_pred, sigma, self.logvar(sigma), cond.views[:, :, -1:])
 
     @torch.no_grad()
-    def sample(self, cond: Conditions, steps: int, seed: int, guidance: float = 1.0) -> Tensor:
+    def sample(self, cond: Conditions, steps: int, seed: int, guidance: float = 1.0,
+               progress: Callable[[int, int], None] | None = None) -> Tensor:
         """Latent views (B, V, 6, H, W) for the conditions, deterministic per seed."""
         b, v, _, h, w = cond.views.shape
         noise = torch.randn((b, v, LATENT_CHANNELS, h, w),
@@ -169,4 +171,4 @@ class LatentGenerator(nn.Module):
         uncond = cond.unconditional()
         denoise = edm.guided(lambda x, s: self.denoise(x, s, cond), lambda x, s: self.denoise(x, s, uncond),
                              guidance)
-        return edm.heun_sample(denoise, noise, steps)
+        return edm.heun_sample(denoise, noise, steps, progress)

@@ -104,9 +104,11 @@ def guided(cond: Denoiser, uncond: Denoiser, scale: float) -> Denoiser:
 
 
 @torch.no_grad()
-def heun_sample(denoise: Denoiser, noise: Tensor, steps: int) -> Tensor:
+def heun_sample(denoise: Denoiser, noise: Tensor, steps: int,
+                progress: Callable[[int, int], None] | None = None) -> Tensor:
     """Deterministic EDM sampler (Karras et al. 2022, Alg. 1): Euler step plus Heun correction
-    except into sigma = 0. ``noise`` is unit Gaussian; it is scaled to sigma_max here."""
+    except into sigma = 0. ``noise`` is unit Gaussian; it is scaled to sigma_max here.
+    ``progress(step, steps)`` is called after each step (the add-on's progress bar)."""
     sigmas = karras_sigmas(steps).to(noise.dtype)
     x = noise * sigmas[0]
     for k in range(steps):
@@ -119,4 +121,6 @@ def heun_sample(denoise: Denoiser, noise: Tensor, steps: int) -> Tensor:
             d_next = (x_next - denoise(x_next, batch_next)) / s_next
             x_next = x + (s_next - s) * 0.5 * (d + d_next)
         x = x_next
+        if progress is not None:
+            progress(k + 1, steps)
     return x

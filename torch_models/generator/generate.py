@@ -5,6 +5,7 @@ import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import torch
@@ -12,12 +13,12 @@ from safetensors.torch import load_file
 from torch import Tensor
 
 from richmat_addon.core.maps import PbrInputs, ParamMap
+from richmat_addon.core.prompt import prompt_type
 from richmat_addon.core.uv_raster import rasterize as uv_rasterize
 from . import text
 from .dit import Conditions, LatentGenerator
 from .mesh_input import MeshInput
 from .projection import Projection, project
-from .prompt import prompt_type
 from .train import GeneratorTrainConfig
 from .views import IntrinsicViews, orbit_cameras, render_intrinsics
 
@@ -68,7 +69,9 @@ def _upsample(values: Tensor, coverage: Tensor, factor: int) -> Tensor:
 
 
 def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: GeneratorTrainConfig, seed: int = 0,
-             steps: int = 18, views: int = 8, guidance: float = 2.0, texture_size: int = 64) -> Generation:
+             steps: int = 18, views: int = 8, guidance: float = 2.0, texture_size: int = 64,
+             progress: Callable[[int, int], None] | None = None) -> Generation:
+    """The latent texture of ``inp`` for ``prompt``; ``progress(step, steps)`` follows the sampling."""
     times: dict[str, float] = {}
     t0 = time.perf_counter()
     type_, warnings = prompt_type(prompt, metallic=False)
@@ -81,7 +84,7 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     cond = Conditions(c[None], text.embed([prompt]), torch.tensor([type_]))
     times["condition_views"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    generated = model.sample(cond, steps, seed, guidance)[0].clamp(-1.0, 1.0)  # the encoder's latent box
+    generated = model.sample(cond, steps, seed, guidance, progress)[0].clamp(-1.0, 1.0)  # the encoder's latent box
     times["sampling"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     fine_cams = orbit_cameras(views, res * PROJECTION_UPSAMPLE)

@@ -80,3 +80,21 @@ def load_mesh(path: Path) -> MeshInput:
         notes.append(f"{len(parts)} parts merged; base colour = the mean of their base colour factors")
     base = (factor[None, None] * texture if texture is not None and had_uvs else factor[None, None])
     return MeshInput(mesh, base.astype(np.float32), had_uvs, notes)
+
+
+def baked_base_color(folder: Path) -> np.ndarray:
+    """(H, W, 3) or (1, 1, 3) linear base colour of a baked enhanced-material folder (params.json).
+
+    The add-on bakes the material it previews; generating against that same base
+    colour keeps the latents and the preview's diffuse base in agreement."""
+    import json
+
+    from ..neural.fit import read_exr
+
+    params_file = folder / "params.json"
+    if not params_file.is_file():
+        raise ValueError(f"{folder}: not a baked material folder (no params.json)")
+    params = json.loads(params_file.read_text())
+    if "base_color" in params["textures"]:
+        return read_exr(folder / params["textures"]["base_color"])[..., :3]
+    return np.asarray(params["constants"]["base_color"], np.float32).reshape(1, 1, 3)

@@ -5,6 +5,8 @@ strengths); a user's prompt may say "dusty", "coated", "velvet". The type is the
 paper's: 0 haze only, 1 dust, 2 clearcoat, 3 dust + clearcoat, 4 fuzz/scattering,
 5 fuzz/scattering + clearcoat. Prompts naming none of them get Type 0, and the
 caller is told that nothing was recognised (outside the training vocabulary).
+Pure Python in ``core``: the Blender add-on uplifts to the type the prompt names
+before the torch backend generates the latents.
 """
 from __future__ import annotations
 
