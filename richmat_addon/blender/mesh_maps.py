@@ -9,12 +9,14 @@ add-on's Uplift/Bake and by ``batch/``.
 from __future__ import annotations
 
 from collections.abc import Collection, Iterable
+from pathlib import Path
 
 import bpy
 import numpy as np
 
 from ..core.maps import ParamMap
 from ..core.uv_raster import rasterize
+from .pbr_source import InputProblem
 
 
 def has_uvs(obj: bpy.types.Object) -> bool:
@@ -79,3 +81,24 @@ def world_maps(surfaces: Iterable[tuple[bpy.types.Object, Collection[int]]], siz
     if raster is None:
         return None, None, reason
     return ParamMap(raster.normals), ParamMap(raster.positions), None
+
+
+def write_obj(obj: bpy.types.Object, slots: Collection[int], path: Path) -> None:
+    """The faces of ``slots`` as a Wavefront OBJ triangle soup for the backend's ``generate``.
+
+    World positions turned Y up (what OBJ readers, and so the backend, expect;
+    Blender's own OBJ export does the same) and the render UV map, so the generated
+    latents land in the texture space the material samples. No normals: the
+    backend's reader (trimesh) merges corners that share position and UV and
+    recomputes smooth vertex normals whatever the file says."""
+    corners = _triangles(obj, slots)
+    if corners is None:
+        raise InputProblem(f"{obj.name!r}: no face with a UV map uses this material")
+    pos, _, uv = corners
+    y_up = lambda a: np.stack([a[:, 0], a[:, 2], -a[:, 1]], 1)
+    index = np.arange(1, len(pos) + 1).reshape(-1, 3)
+    lines = [f"v {x:.7g} {y:.7g} {z:.7g}" for x, y, z in y_up(pos)]
+    lines += [f"vt {u:.7g} {v:.7g}" for u, v in uv]
+    lines += ["f " + " ".join(f"{i}/{i}" for i in tri) for tri in index.tolist()]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")

@@ -24,9 +24,13 @@ class RichmatPreferences(bpy.types.AddonPreferences):
     weights_dir: bpy.props.StringProperty(
         name="Decoder Weights", subtype="DIR_PATH",
         description="A trained decoder folder; empty: the weights shipped with torch_models")
+    generator_dir: bpy.props.StringProperty(
+        name="Generator Weights", subtype="DIR_PATH",
+        description="A train-generator run folder for Generate Material; empty: the generator shipped "
+                    "with torch_models")
 
     def draw(self, context: bpy.types.Context) -> None:
-        for name in ("python", "source_dir", "weights_dir"):
+        for name in ("python", "source_dir", "weights_dir", "generator_dir"):
             self.layout.prop(self, name)
 
 
@@ -35,7 +39,7 @@ def preferences(context: bpy.types.Context):
     addon = context.preferences.addons.get(ADDON)
     if addon is not None and addon.preferences is not None:
         return addon.preferences
-    return SimpleNamespace(python="", source_dir="", weights_dir="")
+    return SimpleNamespace(python="", source_dir="", weights_dir="", generator_dir="")
 
 
 def assign_latents(enhanced: bpy.types.Material, folder: Path) -> str:

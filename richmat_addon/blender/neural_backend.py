@@ -1,6 +1,6 @@
-"""Run the torch backend's ``fit`` command as a child process and follow its JSON lines.
+"""Run the torch backend's ``fit`` and ``generate`` commands as child processes and follow their JSON lines.
 
-Blender's own Python has numpy but no torch, so fitting runs in an interpreter
+Blender's own Python has numpy but no torch, so fitting and generation run in an interpreter
 that has torch and richmat's ``torch_models``: Blender's own when both import
 there (the pip ``bpy`` module in the project's venv), otherwise the one set in
 the add-on preferences. A child process, not a thread, because a fit can be
@@ -56,27 +56,24 @@ def choose_python(configured: str) -> str:
 
 
 @dataclass
-class FitJob:
-    """One ``python -m torch_models fit ... --progress jsonl`` run."""
+class BackendJob:
+    """One ``python -m torch_models <command> ... --progress jsonl`` run; subclasses name the command."""
 
     python: str
-    material_dir: Path
-    out_dir: Path
-    steps: int
-    source_root: Path | None = None
-    weights: str = ""
-    events: "queue.Queue[dict]" = field(default_factory=queue.Queue)
-    stderr: list[str] = field(default_factory=list)
-    done: dict | None = None
-    error: str | None = None
-    process: subprocess.Popen | None = None
-    readers: list[threading.Thread] = field(default_factory=list)
+    source_root: Path | None = field(default=None, kw_only=True)
+    events: "queue.Queue[dict]" = field(default_factory=queue.Queue, kw_only=True)
+    stderr: list[str] = field(default_factory=list, kw_only=True)
+    done: dict | None = field(default=None, kw_only=True)
+    error: str | None = field(default=None, kw_only=True)
+    process: subprocess.Popen | None = field(default=None, kw_only=True)
+    readers: list[threading.Thread] = field(default_factory=list, kw_only=True)
+
+    def arguments(self) -> list[str]:
+        """The command and its arguments after ``python -m torch_models``."""
+        raise NotImplementedError
 
     def start(self) -> None:
-        cmd = [self.python, "-m", "torch_models", "fit", str(self.material_dir), "--out", str(self.out_dir),
-               "--steps", str(self.steps), "--progress", "jsonl"]
-        if self.weights:
-            cmd += ["--weights", self.weights]
+        cmd = [self.python, "-m", "torch_models", *self.arguments(), "--progress", "jsonl"]
         env = dict(os.environ)
         if self.source_root is not None:
             env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(self.source_root), env.get("PYTHONPATH")]))
@@ -136,7 +133,7 @@ class FitJob:
 
     def diagnose(self, code: int) -> str:
         if self.error:
-            return f"fit failed: {self.error}"
+            return f"{self.arguments()[0]} failed: {self.error}"
         text = "\n".join(self.stderr)
         if "No module named 'torch'" in text:
             return (f"the backend Python {self.python} has no torch: run `{self.python} -m pip install torch` "
@@ -154,3 +151,37 @@ class FitJob:
                 self.process.wait(timeout=5)
             except subprocess.TimeoutExpired:
                 self.process.kill()
+
+
+@dataclass
+class FitJob(BackendJob):
+    """Fit the latents of a baked material against the decoder (``weights``: empty for the shipped one)."""
+
+    material_dir: Path
+    out_dir: Path
+    steps: int
+    weights: str = ""
+
+    def arguments(self) -> list[str]:
+        args = ["fit", str(self.material_dir), "--out", str(self.out_dir), "--steps", str(self.steps)]
+        return args + (["--weights", self.weights] if self.weights else [])
+
+
+@dataclass
+class GenerateJob(BackendJob):
+    """Generate the latents of a mesh from a prompt, against a baked material's base colour
+    (``checkpoint``: a generator run folder, empty for the shipped one)."""
+
+    mesh: Path
+    material_dir: Path
+    out_dir: Path
+    prompt: str
+    steps: int
+    seed: int = 0
+    checkpoint: str = ""
+
+    def arguments(self) -> list[str]:
+        args = ["generate", str(self.mesh), "--prompt", self.prompt, "--material", str(self.material_dir),
+                "--out", str(self.out_dir), "--steps", str(self.steps), "--seed", str(self.seed),
+                "--no-preview"]  # Blender previews with its own OSL shader
+        return args + (["--checkpoint", self.checkpoint] if self.checkpoint else [])

@@ -10,7 +10,8 @@ from pathlib import Path
 
 import bpy
 
-from . import bake, neural_assets, neural_backend, uplift
+from ..core.prompt import prompt_type
+from . import bake, mesh_maps, neural_assets, neural_backend, uplift
 from .cycles_builder import enable_osl
 from .pbr_source import InputProblem
 
@@ -158,38 +159,28 @@ class RICHMAT_OT_export_materialx(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class RICHMAT_OT_fit_neural(bpy.types.Operator):
-    """Compress the baked material to two latent textures with the torch backend (Esc cancels)"""
+class _BackendOperator:
+    """What the operators running the torch backend share: the job in a child process, progress
+    in the status bar, Esc cancels, and the resulting latents assigned to the enhanced material."""
 
-    bl_idname = "richmat.fit_neural"
-    bl_label = "Fit Neural Material"
-    bl_options = {"REGISTER"}
-
-    _job: neural_backend.FitJob | None = None
+    _job: neural_backend.BackendJob | None = None
     _timer = None
+    _did = ""  # "fitted", "generated": the report's verb
 
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        if not _needs_enhanced(cls, context):
-            return False
-        enhanced = _enhanced(context)
-        if not enhanced.richmat.bake_dir or not (Path(enhanced.richmat.bake_dir) / "params.json").is_file():
-            cls.poll_message_set("Bake Parameters first: the fit reads the baked maps")
-            return False
-        return True
+    def _make_job(self, context: bpy.types.Context) -> neural_backend.BackendJob:
+        raise NotImplementedError
+
+    def _total(self, context: bpy.types.Context) -> int:
+        raise NotImplementedError
+
+    def _status(self, event: dict) -> str:
+        raise NotImplementedError
 
     def _start(self, context: bpy.types.Context) -> bool:
-        prefs = neural_assets.preferences(context)
-        enhanced = _enhanced(context)
-        baked = Path(enhanced.richmat.bake_dir)
         try:
-            python = neural_backend.choose_python(bpy.path.abspath(prefs.python))
-            source = neural_backend.backend_root(bpy.path.abspath(prefs.source_dir))
-            weights = bpy.path.abspath(prefs.weights_dir) if prefs.weights_dir else ""
-            self._job = neural_backend.FitJob(python, baked, baked / "neural", _settings(context).fit_steps,
-                                              source, weights)
+            self._job = self._make_job(context)
             self._job.start()
-        except neural_backend.BackendProblem as exc:
+        except (neural_backend.BackendProblem, InputProblem, OSError) as exc:
             self.report({"ERROR"}, str(exc))
             return False
         return True
@@ -203,7 +194,9 @@ class RICHMAT_OT_fit_neural(bpy.types.Operator):
         enhanced = _enhanced(context)
         enhanced.richmat.neural_dir = done["out"]
         assigned = neural_assets.assign_latents(enhanced, Path(done["out"]))
-        self.report({"INFO"}, f"Neural material fitted into {done['out']}; {assigned}")
+        warnings = "".join(f"; warning: {w}" for w in done.get("warnings", []))
+        self.report({"WARNING"} if warnings else {"INFO"},
+                    f"Neural material {self._did} into {done['out']}; {assigned}{warnings}")
         return {"FINISHED"}
 
     def execute(self, context: bpy.types.Context) -> set[str]:
@@ -216,25 +209,24 @@ class RICHMAT_OT_fit_neural(bpy.types.Operator):
         if not self._start(context):
             return {"CANCELLED"}
         wm = context.window_manager
-        wm.progress_begin(0, _settings(context).fit_steps)
+        wm.progress_begin(0, self._total(context))
         self._timer = wm.event_timer_add(0.2, window=context.window)
         wm.modal_handler_add(self)
-        self.report({"INFO"}, "Fitting neural material (Esc cancels)")
+        self.report({"INFO"}, f"{self.bl_label} (Esc cancels)")
         return {"RUNNING_MODAL"}
 
     def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
         if event.type == "ESC":
             self._job.cancel()
             self._end(context)
-            self.report({"WARNING"}, "Neural fit cancelled")
+            self.report({"WARNING"}, f"{self.bl_label} cancelled")
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
         for e in self._job.poll():
             if e["event"] == "progress":
                 context.window_manager.progress_update(int(e["step"]))
-                context.workspace.status_text_set(
-                    f"Richmat fit: step {e['step']}/{e['total']}, loss {e['loss']:.4f} (Esc cancels)")
+                context.workspace.status_text_set(self._status(e))
         if self._job.running:
             return {"PASS_THROUGH"}
         self._end(context)
@@ -245,6 +237,94 @@ class RICHMAT_OT_fit_neural(bpy.types.Operator):
         wm.event_timer_remove(self._timer)
         wm.progress_end()
         context.workspace.status_text_set(None)
+
+
+def _backend(context: bpy.types.Context) -> tuple[str, Path | None]:
+    """(interpreter, source root) of the torch backend, or a BackendProblem naming the fix."""
+    prefs = neural_assets.preferences(context)
+    return (neural_backend.choose_python(bpy.path.abspath(prefs.python)),
+            neural_backend.backend_root(bpy.path.abspath(prefs.source_dir)))
+
+
+class RICHMAT_OT_fit_neural(_BackendOperator, bpy.types.Operator):
+    """Compress the baked material to two latent textures with the torch backend (Esc cancels)"""
+
+    bl_idname = "richmat.fit_neural"
+    bl_label = "Fit Neural Material"
+    bl_options = {"REGISTER"}
+    _did = "fitted"
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        if not _needs_enhanced(cls, context):
+            return False
+        enhanced = _enhanced(context)
+        if not enhanced.richmat.bake_dir or not (Path(enhanced.richmat.bake_dir) / "params.json").is_file():
+            cls.poll_message_set("Bake Parameters first: the fit reads the baked maps")
+            return False
+        return True
+
+    def _make_job(self, context: bpy.types.Context) -> neural_backend.BackendJob:
+        prefs = neural_assets.preferences(context)
+        baked = Path(_enhanced(context).richmat.bake_dir)
+        python, source = _backend(context)
+        weights = bpy.path.abspath(prefs.weights_dir) if prefs.weights_dir else ""
+        return neural_backend.FitJob(python, baked, baked / "neural", _settings(context).fit_steps, weights,
+                                     source_root=source)
+
+    def _total(self, context: bpy.types.Context) -> int:
+        return _settings(context).fit_steps
+
+    def _status(self, event: dict) -> str:
+        return f"Richmat fit: step {event['step']}/{event['total']}, loss {event['loss']:.4f} (Esc cancels)"
+
+
+class RICHMAT_OT_generate_material(_BackendOperator, bpy.types.Operator):
+    """Generate a neural material for the active mesh from the prompt (torch backend; Esc cancels).
+    Uplifts the active material to the type the prompt names and bakes it first"""
+
+    bl_idname = "richmat.generate_material"
+    bl_label = "Generate Material"
+    bl_options = {"REGISTER"}
+    _did = "generated"
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        if not _mesh_with_material(cls, context):
+            return False
+        if not mesh_maps.has_uvs(context.active_object):
+            cls.poll_message_set("The latents live in the UV map: run Unwrap UVs first")
+            return False
+        if not _settings(context).prompt.strip():
+            cls.poll_message_set("Type a prompt first (e.g. \"red paint with light dust\")")
+            return False
+        return True
+
+    def _make_job(self, context: bpy.types.Context) -> neural_backend.BackendJob:
+        s, obj = _settings(context), context.active_object
+        python, source = _backend(context)  # before any change: a missing backend changes nothing
+        type_, _ = prompt_type(s.prompt)
+        try:
+            uplift.uplift(obj, False, str(type_), s.seed)
+        except InputProblem:
+            if type_ < 4:
+                raise
+            uplift.uplift(obj, False, str(prompt_type(s.prompt, metallic=True)[0]), s.seed)  # a metal
+        enable_osl(context.scene)
+        bake.bake(obj, False, bake.output_root(context.scene))
+        baked = Path(_enhanced(context).richmat.bake_dir)
+        mesh = baked / "generate_mesh.obj"
+        mesh_maps.write_obj(obj, [obj.active_material_index], mesh)
+        prefs = neural_assets.preferences(context)
+        checkpoint = bpy.path.abspath(prefs.generator_dir) if prefs.generator_dir else ""
+        return neural_backend.GenerateJob(python, mesh, baked, baked / "neural", s.prompt.strip(),
+                                          s.generate_steps, s.seed, checkpoint, source_root=source)
+
+    def _total(self, context: bpy.types.Context) -> int:
+        return _settings(context).generate_steps
+
+    def _status(self, event: dict) -> str:
+        return f"Richmat generate: sampling step {event['step']}/{event['total']} (Esc cancels)"
 
 
 class RICHMAT_OT_unwrap_uvs(bpy.types.Operator):
@@ -274,4 +354,4 @@ class RICHMAT_OT_unwrap_uvs(bpy.types.Operator):
 
 
 CLASSES = (RICHMAT_OT_uplift_material, RICHMAT_OT_switch_material, RICHMAT_OT_bake_parameters,
-           RICHMAT_OT_fit_neural, RICHMAT_OT_export_materialx, RICHMAT_OT_unwrap_uvs)
+           RICHMAT_OT_fit_neural, RICHMAT_OT_generate_material, RICHMAT_OT_export_materialx, RICHMAT_OT_unwrap_uvs)

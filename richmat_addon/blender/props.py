@@ -25,6 +25,13 @@ class RichmatSceneSettings(bpy.types.PropertyGroup):
     fit_steps: bpy.props.IntProperty(
         name="Fit Steps", default=300, min=1, soft_max=2000,
         description="Optimisation steps of the neural fit")
+    prompt: bpy.props.StringProperty(
+        name="Prompt", default="",
+        description="What the generated material looks like; keywords pick the enhancement "
+                    "(dust, clear coat, velvet/fuzz, subsurface/waxy), e.g. \"red paint with light dust\"")
+    generate_steps: bpy.props.IntProperty(
+        name="Sampling Steps", default=18, min=1, soft_max=64,
+        description="Diffusion sampling steps of Generate Material (fewer: faster, blurrier)")
 
 
 class RichmatMaterialSettings(bpy.types.PropertyGroup):

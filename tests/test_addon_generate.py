@@ -1,0 +1,73 @@
+"""Generate Material in Blender: poll, the backend run on a tiny checkpoint, assignment and preview."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
+from .test_generator_generate import checkpoint  # noqa: F401  (tiny trained generator, module fixture)
+
+GENERATE = r'''
+obj = procedural_asset(TMP, size=16)
+scene = bpy.context.scene
+scene.richmat.output_dir = TMP + "/baked"
+scene.richmat.generate_steps = 2
+polls = {"empty prompt": bpy.ops.richmat.generate_material.poll()}
+scene.richmat.prompt = "red paint with light dust"
+polls["ready"] = bpy.ops.richmat.generate_material.poll()
+bpy.context.view_layer.objects.active = None
+polls["no mesh"] = bpy.ops.richmat.generate_material.poll()
+bpy.context.view_layer.objects.active = obj
+prefs = bpy.context.preferences.addons[MODULE].preferences
+prefs.generator_dir = CHECKPOINT
+res, err = run_op("generate_material")
+enhanced = obj.active_material
+nodes = {n.name: n.image.name for n in enhanced.node_tree.nodes if n.name.startswith("neural_latent")}
+neural = Path(enhanced.richmat.neural_dir) if enhanced.richmat.neural_dir else None
+record = json.loads((neural / "neural.json").read_text()) if neural else {}
+pixels = []
+for name in sorted(nodes):
+    image = enhanced.node_tree.nodes[name].image
+    pixels.append(np.array(image.pixels[:]).reshape(image.size[1], image.size[0], 4)[..., :3].tolist())
+preview_res, preview_err = run_op("preview_neural")
+print("RESULT " + json.dumps(dict(
+    polls=polls, res=list(res), err=err, type=enhanced.richmat.type, bake_dir=enhanced.richmat.bake_dir,
+    nodes=nodes, record=record, pixels=pixels, preview=[list(preview_res), preview_err],
+    preview_material=obj.active_material.name,
+    preview_script="richmat_neural_osl" in obj.active_material.node_tree.nodes)))
+'''
+
+
+def run_generate(blender_run, zip_path: Path, tmp_path: Path, checkpoint_dir: Path) -> dict:
+    return blender_run(script(f"TMP = {str(tmp_path)!r}\nCHECKPOINT = {str(checkpoint_dir)!r}\n" + GENERATE,
+                              zip_path))
+
+
+def test_generate_assigns_latents_that_the_neural_preview_renders(blender_run, extension_zip: Path,  # noqa: F811
+                                                                    checkpoint: Path, tmp_path: Path):  # noqa: F811
+    import numpy as np
+
+    result = run_generate(blender_run, extension_zip, tmp_path, checkpoint)
+    assert result["polls"] == {"empty prompt": False, "ready": True, "no mesh": False}
+    assert result["res"] == ["FINISHED"], result["err"]
+    assert result["type"] == 1  # "light dust": the material was uplifted to the type the prompt names
+    record = result["record"]
+    assert record["prompt"] == "red paint with light dust" and record["type"] == 1 and record["steps"] == 2
+    assert Path(record["checkpoint"]) == checkpoint
+    assert record["projection"]["seen"] > 0.5  # the sphere's UV map is covered by the views
+    assert result["nodes"] == {"neural_latent_0": "latent_0.exr", "neural_latent_1": "latent_1.exr"}
+    latents = np.concatenate([np.asarray(p) for p in result["pixels"]], -1)
+    assert latents.shape[-1] == 6 and np.isfinite(latents).all() and np.abs(latents).max() <= 1.0 + 1e-3
+    assert latents.reshape(-1, 6).std(0).max() > 0  # not one constant: generated per texel
+    assert record["material"] == result["bake_dir"]  # against the baked base colour the preview uses
+    assert result["preview"] == [["FINISHED"], None]
+    assert result["preview_script"] and result["preview_material"].endswith("(richmat neural)")
+
+
+def test_a_missing_generator_is_reported_with_the_fix(blender_run, extension_zip: Path,  # noqa: F811
+                                                      tmp_path: Path):
+    result = run_generate(blender_run, extension_zip, tmp_path, tmp_path / "none")
+    assert result["res"] == ["CANCELLED"]
+    assert "no trained generator" in result["err"] and "train-generator" in result["err"]
+    assert "Traceback" not in result["err"]
+    assert result["nodes"] == {} and result["record"] == {}
