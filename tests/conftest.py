@@ -21,27 +21,31 @@ REPO = Path(__file__).resolve().parents[1]
 SHARED_ASSETS = REPO.parent / "shared" / "assets"
 
 
-@pytest.fixture
-def blender_run(tmp_path: Path) -> Callable[..., Any]:
-    """Run Python source with the pip bpy module in a fresh process.
+def run_blender(source: str, folder: Path, timeout: float = 300.0) -> Any:
+    """Run Python source with the pip bpy module in a fresh process, inside ``folder``.
 
     The source may print one line ``RESULT <json>``; its decoded value is returned.
-    Blender's user folder points into tmp_path so nothing leaks into ~/.config.
+    Blender's user folder points into ``folder`` so nothing leaks into ~/.config.
+    Also used by bench/addon_assets.py.
     """
+    script = folder / "blender_script.py"
+    script.write_text(textwrap.dedent(source))
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(folder / "blender_user"), PYTHONPATH=str(REPO))
+    proc = subprocess.run([sys.executable, str(script)], cwd=folder, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+    if proc.returncode != 0:
+        raise AssertionError(f"blender script failed ({proc.returncode}):\n"
+                             f"{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
+    results = [ln[len("RESULT "):] for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
+    return json.loads(results[-1]) if results else None
+
+
+@pytest.fixture
+def blender_run(tmp_path: Path) -> Callable[..., Any]:
+    """``run_blender`` in the test's tmp_path."""
 
     def run(source: str, timeout: float = 300.0) -> Any:
-        script = tmp_path / "blender_script.py"
-        script.write_text(textwrap.dedent(source))
-        env = dict(os.environ,
-                   BLENDER_USER_RESOURCES=str(tmp_path / "blender_user"),
-                   PYTHONPATH=str(REPO))
-        proc = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env,
-                              capture_output=True, text=True, timeout=timeout)
-        if proc.returncode != 0:
-            raise AssertionError(f"blender script failed ({proc.returncode}):\n"
-                                 f"{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
-        results = [ln[len("RESULT "):] for ln in proc.stdout.splitlines() if ln.startswith("RESULT ")]
-        return json.loads(results[-1]) if results else None
+        return run_blender(source, tmp_path, timeout)
 
     return run
 

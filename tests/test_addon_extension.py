@@ -24,14 +24,19 @@ def blender_ext() -> Path:
     return Path(importlib.util.find_spec("bpy").origin).parent / "5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py"
 
 
-@pytest.fixture(scope="session")
-def extension_zip(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """``make extension`` (the venv is not re-installed: its stamp is taken as up to date)."""
+def build_extension() -> Path:
+    """``make extension`` (the venv is not re-installed: its stamp is taken as up to date); the zip.
+    Also used by bench/addon_assets.py."""
     subprocess.run(["make", "-o", ".venv/.installed", f"PY={sys.executable}", "extension"], cwd=REPO,
                    check=True, capture_output=True)
     zips = sorted((REPO / "dist").glob("richmat-*.zip"))
     assert zips, "make extension wrote no zip"
     return zips[-1]
+
+
+@pytest.fixture(scope="session")
+def extension_zip(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return build_extension()
 
 
 def script(body: str, zip_path: Path) -> str:
