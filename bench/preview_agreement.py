@@ -4,7 +4,8 @@ For one material per type (bench/agreement_cases.py, latent from the encoder),
 renders the preview ball with the torch renderer (``NeuralBsdf``, probe MIS) and
 with Cycles running the shader of ``richmat_addon/core/neural_osl.py``, same
 probe, scene and networks; reports mean LDR-FLIP (AgX, sRGB, 67 ppd) per type
-and the torch-vs-torch noise floor (two seeds).
+and the torch-vs-torch noise floor (two seeds). Writes the JSON and, beside it,
+a PNG sheet (Cycles | torch | FLIP map, one row per type).
 
     python bench/preview_agreement.py [--weights RUN] [--resolution 48] [--spp 1024]
         [--cycles-spp 384] [--directions 8] [--out docs/preview_agreement.json]
@@ -29,13 +30,14 @@ import torch
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
+from agreement import contact_sheet  # noqa: E402
 from agreement_cases import cases  # noqa: E402
 from richmat_addon.core.schema import CHANNEL_SLICES  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.bsdf import NeuralBsdf  # noqa: E402
 from torch_models.neural.evaluate import DEFAULT_PROBE, BallSetup  # noqa: E402
 from torch_models.render.ball import render_ball  # noqa: E402
-from torch_models.render.flip import mean_flip  # noqa: E402
+from torch_models.render.flip import flip_map, mean_flip  # noqa: E402
 from torch_models.render.tonemap import agx  # noqa: E402
 
 TARGET = 0.05
@@ -116,20 +118,22 @@ def main() -> None:
         subprocess.run([sys.executable, str(Path(tmp) / "preview_cycles_job.py"), str(Path(tmp) / "job.json")],
                        check=True, capture_output=True,
                        env={**os.environ, "PYTHONPATH": str(REPO), "BLENDER_USER_RESOURCES": tmp})
-        rows = []
+        rows, sheet = [], []
         for case in job_cases:
-            cycles = np.load(Path(tmp) / (case["name"] + ".npy"))
-            flip = mean_flip(agx(torch_images[case["name"]]), agx(cycles))
+            cycles, reference = agx(np.load(Path(tmp) / (case["name"] + ".npy"))), agx(torch_images[case["name"]])
+            error, flip = flip_map(reference, cycles)
+            sheet.append((case["name"], cycles, reference, error))
             rows.append({"name": case["name"], "flip": flip, "torch_noise_floor": floors[case["name"]]})
             print(f"{case['name']}: FLIP {flip:.4f} (torch vs torch {floors[case['name']]:.4f})", flush=True)
     mean = float(np.mean([r["flip"] for r in rows]))
     report = {"resolution": args.resolution, "torch_spp": args.spp, "cycles_spp": args.cycles_spp,
               "directions": args.directions, "weights": str(args.weights), "decoder_sha256": model.digest,
               "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
-              "mean_flip": mean, "target": TARGET, "passed": mean <= TARGET, "cases": rows,
+              "mean_flip": mean, "worst_flip": max(r["flip"] for r in rows), "target": TARGET, "passed": mean <= TARGET, "cases": rows,
               "wall_seconds": time.perf_counter() - start}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=1))
+    contact_sheet(sheet, args.out.with_suffix(".png"))
     print(f"mean FLIP {mean:.4f} (target {TARGET})")
 
 
