@@ -129,7 +129,8 @@ def main() -> None:
     report = {"resolution": args.resolution, "torch_spp": args.spp, "cycles_spp": args.cycles_spp,
               "directions": args.directions, "weights": str(args.weights), "decoder_sha256": model.digest,
               "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
-              "mean_flip": mean, "worst_flip": max(r["flip"] for r in rows), "target": TARGET, "passed": mean <= TARGET, "cases": rows,
+              "mean_flip": mean, "worst_flip": max(r["flip"] for r in rows), "target": TARGET,
+              "passed": mean <= TARGET, "cases": rows,
               "wall_seconds": time.perf_counter() - start}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=1))
