@@ -19,13 +19,15 @@ fit's cost grows with them, and the full 1K-2K maps take tens of minutes per
 material on a shared 2-core machine. Every step still runs on the real meshes,
 materials and texture content.
 
-The report is rewritten after each asset, and a rerun with ``--merge`` keeps the
-assets it does not rerun, so a long run can be done asset by asset.
+The report is rewritten after each asset, and a run with ``--merge`` keeps the
+assets it does not run, so assets can run in separate (also concurrent) runs;
+each asset records its settings.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 import time
@@ -259,11 +261,9 @@ def main() -> None:
     args = parser.parse_args()
 
     zip_path = build_extension()
-    report = json.loads(args.out.read_text()) if args.merge and args.out.is_file() else {}
-    report.update(fit_steps=args.steps, render_size=args.size, render_samples=args.samples,
-                  texture_size=args.texture_size,
-                  probe=DEFAULT_PROBE.name, extension=zip_path.name)
-    assets = report.setdefault("assets", {})
+    settings = dict(fit_steps=args.steps, texture_size=args.texture_size, render_size=args.size,
+                    render_samples=args.samples, torch_threads=os.environ.get("OMP_NUM_THREADS", "all"))
+    assets = {}
     for name in args.assets:
         with tempfile.TemporaryDirectory(prefix=f"richmat_{name}_") as tmp:
             record = run_asset(name, zip_path, Path(tmp), args)
@@ -271,8 +271,12 @@ def main() -> None:
                 contact_sheet(record, Path(tmp) / "renders", args.sheet)
         for r in record["records"]:
             r["render"] = Path(r["render"]).name if "render" in r else None
-        assets[name] = record
-        report["all_ok"] = all(r["ok"] for a in assets.values() for r in a["records"])
+        assets[name] = dict(record, settings=settings)
+        # Read again before writing: runs of other assets with --merge may have written meanwhile.
+        report = json.loads(args.out.read_text()) if args.merge and args.out.is_file() else {}
+        report.update(probe=DEFAULT_PROBE.name, extension=zip_path.name)
+        report.setdefault("assets", {}).update(assets)
+        report["all_ok"] = all(r["ok"] for a in report["assets"].values() for r in a["records"])
         args.out.write_text(json.dumps(report, indent=1))
         print(name, {r["step"]: (r["ok"], round(r["seconds"], 1)) for r in record["records"]}, flush=True)
 
