@@ -23,6 +23,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from .generator import DEFAULT_STEPS, DEFAULT_VIEWS
+
 HELP = "generate the latent textures of a neural material for a mesh from a text prompt"
 
 
@@ -31,8 +33,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--prompt", required=True, help='what the material looks like ("dusty copper, light dust")')
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--seed", type=int, default=0, help="sampling seed (default: 0)")
-    parser.add_argument("--steps", type=int, default=18, help="Heun sampling steps (default: 18)")
-    parser.add_argument("--views", type=int, default=8, help="orbit views generated (default: 8)")
+    parser.add_argument("--steps", type=int, default=DEFAULT_STEPS,
+                        help=f"Heun sampling steps (default: {DEFAULT_STEPS})")
+    parser.add_argument("--views", type=int, default=DEFAULT_VIEWS,
+                        help=f"orbit views generated (default: {DEFAULT_VIEWS})")
     parser.add_argument("--guidance", type=float, default=2.0, help="classifier-free guidance scale (default: 2)")
     parser.add_argument("--texture-size", type=int, default=64, help="latent texture size in texels (default: 64)")
     parser.add_argument("--checkpoint", type=Path, default=None,

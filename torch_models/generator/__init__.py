@@ -1,1 +1,6 @@
 """Text-to-neural-material generator (paper sec. 5.2): a small conditional multi-view diffusion model."""
+
+# Sampling steps and views of a generation, chosen from bench/generate_speed.py (docs/generate_speed.json).
+# Here, torch-free, so that the CLI's --help reads them without importing torch.
+DEFAULT_STEPS = 18
+DEFAULT_VIEWS = 8

@@ -15,7 +15,7 @@ from torch import Tensor
 from richmat_addon.core.maps import PbrInputs, ParamMap
 from richmat_addon.core.prompt import prompt_type
 from richmat_addon.core.uv_raster import rasterize as uv_rasterize
-from . import text
+from . import DEFAULT_STEPS, DEFAULT_VIEWS, text
 from .dit import Conditions, LatentGenerator
 from .mesh_input import MeshInput
 from .projection import Projection, project
@@ -23,6 +23,7 @@ from .train import GeneratorTrainConfig
 from .views import IntrinsicViews, orbit_cameras, render_intrinsics
 
 SHIPPED = Path(__file__).resolve().parent / "weights"
+SEEN_WARNING = 0.5  # below this share of directly seen texels the result is mostly inpainted: say so
 PROJECTION_UPSAMPLE = 4  # generated views are upsampled this much before splatting, so texels get dense samples
 
 
@@ -53,6 +54,7 @@ def diffuse_fallback_latent() -> Tensor:
 @dataclass
 class Generation:
     latents: np.ndarray  # (H, W, 6) texture
+    views: Tensor  # (V, 6, h, w) the sampled latent views the texture was projected from
     projection: Projection
     charts: Tensor
     type: int
@@ -69,7 +71,7 @@ def _upsample(values: Tensor, coverage: Tensor, factor: int) -> Tensor:
 
 
 def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: GeneratorTrainConfig, seed: int = 0,
-             steps: int = 18, views: int = 8, guidance: float = 2.0, texture_size: int = 64,
+             steps: int = DEFAULT_STEPS, views: int = DEFAULT_VIEWS, guidance: float = 2.0, texture_size: int = 64,
              progress: Callable[[int, int], None] | None = None) -> Generation:
     """The latent texture of ``inp`` for ``prompt``; ``progress(step, steps)`` follows the sampling."""
     times: dict[str, float] = {}
@@ -101,7 +103,10 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     if stats["fallback"] > 0.05:
         warnings.append(f"{stats['fallback']:.0%} of the texels lie on UV islands no view saw: "
                         "they got the diffuse fallback (more --views may help)")
-    return Generation(proj.texture.numpy(), proj, charts, type_, warnings, times)
+    if stats["seen"] < SEEN_WARNING:
+        warnings.append(f"only {stats['seen']:.0%} of the texels were seen squarely by a view (thin parts, many "
+                        "small UV islands or hidden surfaces): the rest is inpainted from their neighbours")
+    return Generation(proj.texture.numpy(), generated, proj, charts, type_, warnings, times)
 
 
 def preview(inp: MeshInput, latents: np.ndarray, frames: int = 4, resolution: int = 128, spp: int = 16) -> np.ndarray:
