@@ -76,3 +76,17 @@ def test_mesh_without_uvs_is_unwrapped(checkpoint, tmp_path):
 def test_missing_checkpoint_is_bad_input(tmp_path):
     assert main(["generate", str(GLB), "--prompt", "x", "--out", str(tmp_path / "o"),
                  "--checkpoint", str(tmp_path / "none")]) == 2
+
+
+def test_a_mostly_inpainted_texture_is_warned_about(checkpoint):
+    from torch_models.generator import generate as gen
+    from torch_models.generator.mesh_input import load_mesh
+
+    model, cfg = gen.load_generator(checkpoint)
+    inp = load_mesh(GLB)
+    one = gen.generate(inp, "silver metal with light dust", model, cfg, steps=1, views=1, texture_size=32)
+    assert one.views.shape == (1, 6, cfg.model.size, cfg.model.size)  # what was projected, for round-trip checks
+    assert one.projection.stats(one.charts)["seen"] < gen.SEEN_WARNING
+    assert any("inpainted from their neighbours" in w for w in one.warnings)
+    many = gen.generate(inp, "silver metal with light dust", model, cfg, steps=1, views=8, texture_size=32)
+    assert many.projection.stats(many.charts)["seen"] > one.projection.stats(one.charts)["seen"]
