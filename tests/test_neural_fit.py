@@ -50,6 +50,22 @@ def test_fit_writes_latent_textures_and_fits_each_vector_once(tiny_weights: Path
     assert record["furnace"]["passed"] + record["furnace"]["repaired_by_scaling"] == record["fitted_vectors"]
 
 
+def test_fit_is_bit_reproducible_with_threads(tiny_weights: Path) -> None:
+    """A farm job and its restart must write the same latents: no thread-order-dependent sums."""
+    from torch_models.neural.data import parameter_vectors
+    from torch_models.neural.weights import load
+
+    model, threads = load(tiny_weights), torch.get_num_threads()
+    vectors = parameter_vectors(256, np.random.default_rng(0))
+    torch.set_num_threads(2)
+    try:
+        runs = {fit.fit_latents(model, vectors, 3).numpy().tobytes() for _ in range(4)}
+    finally:
+        torch.set_num_threads(threads)
+    assert len(runs) == 1
+    assert not torch.are_deterministic_algorithms_enabled()  # the setting is restored after the fit
+
+
 def test_constant_material_stays_one_vector(tiny_weights: Path, tmp_path: Path) -> None:
     pbr = PbrInputs("c", ParamMap.constant(0.5, 0.4, 0.3), ParamMap.constant(0.3), ParamMap.constant(0.0))
     write_material(tmp_path / "c", enhance(pbr, 2, 1), {"asset": "test"})

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -81,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"interrupted at step {latest['step']}; --resume continues from {state}")
             return 130
     record = write_latents(args.out, mv, z, fit.furnace(model, z))
-    record.update(decoder_sha256=model.digest, material=str(args.material), steps=args.steps,
+    record.update(decoder_sha256=model.digest, material=os.path.relpath(args.material, args.out), steps=args.steps,
                   final_loss=latest["loss"])
     with atomic_path(args.out / "neural.json") as tmp:
         tmp.write_text(json.dumps(record, indent=1, sort_keys=True))

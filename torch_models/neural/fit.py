@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -105,15 +107,32 @@ def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int 
     opt = torch.optim.Adam([z], lr=1e-2)
     gen = torch.Generator().manual_seed(seed)
     buffer = [make_batch(pool, batch, gen) for _ in range(min(steps, FIT_BUFFER))]
-    for step in range(steps):
-        b = buffer[step % len(buffer)]
-        loss = decoder_loss(model.decoder, z[b.index], b)
-        opt.zero_grad()
-        loss.backward()
-        opt.step()
-        if progress is not None:
-            progress(step, loss.item(), z.detach())
+    with deterministic():
+        for step in range(steps):
+            b = buffer[step % len(buffer)]
+            loss = decoder_loss(model.decoder, z[b.index], b)
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            if progress is not None:
+                progress(step, loss.item(), z.detach())
     return z.detach()
+
+
+@contextmanager
+def deterministic() -> Iterator[None]:
+    """Torch's deterministic kernels while fitting.
+
+    The gradient of ``z[index]`` scatters into the latent rows; with more than one
+    thread the default CPU kernel sums in a varying order, so two runs (a farm job
+    and its restart) would write latents a half-float step apart.
+    """
+    before = torch.are_deterministic_algorithms_enabled()
+    torch.use_deterministic_algorithms(True)
+    try:
+        yield
+    finally:
+        torch.use_deterministic_algorithms(before)
 
 
 VIEW_COSINES = (1.0, 0.7, 0.4, 0.15, 0.05)
