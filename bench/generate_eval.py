@@ -45,7 +45,7 @@ sys.path.insert(0, str(REPO))
 from richmat_addon.core.enhance import baseline, enhance, is_metallic  # noqa: E402
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap  # noqa: E402
 from richmat_addon.core.prompt import prompt_type  # noqa: E402
-from torch_models.generator import corpus, procedural, text  # noqa: E402
+from torch_models.generator import DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural, text  # noqa: E402
 from torch_models.generator import generate as gen  # noqa: E402
 from torch_models.generator.dit import LatentGenerator  # noqa: E402
 from torch_models.generator.mesh_input import MeshInput  # noqa: E402
@@ -223,9 +223,9 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=0, help="sampling seed")
     ap.add_argument("--checkpoint", type=Path, default=gen.SHIPPED)
     ap.add_argument("--objects", type=int, default=8)
-    ap.add_argument("--views", type=int, default=8, help="views generated")
+    ap.add_argument("--views", type=int, default=DEFAULT_VIEWS, help="views generated")
     ap.add_argument("--eval-views", type=int, default=16, help="views rendered for the metrics")
-    ap.add_argument("--steps", type=int, default=18)
+    ap.add_argument("--steps", type=int, default=DEFAULT_STEPS)
     ap.add_argument("--guidance", type=float, default=2.0)
     ap.add_argument("--resolution", type=int, default=64, help="evaluation render size")
     ap.add_argument("--spp", type=int, default=16)

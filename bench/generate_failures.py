@@ -34,7 +34,7 @@ sys.path[:0] = [str(REPO), str(REPO / "bench")]
 from generate_eval import Retrieval, held_out, held_out_indices  # noqa: E402
 from richmat_addon.core.prompt import prompt_type  # noqa: E402
 from torch_models.generator import generate as gen  # noqa: E402
-from torch_models.generator import text  # noqa: E402
+from torch_models.generator import DEFAULT_STEPS, text  # noqa: E402
 from torch_models.generator.dit import LatentGenerator  # noqa: E402
 from torch_models.generator.mesh_input import MeshInput  # noqa: E402
 from torch_models.generator.train import GeneratorTrainConfig  # noqa: E402
@@ -43,6 +43,7 @@ from torch_models.generator.views import Mesh, orbit_cameras, render_intrinsics 
 ISLAND_CAPS = (None, 1 / 16, 1 / 64, 1 / 256)  # max chart area as a share of the surface (None: xatlas default)
 TUBE_RADII = (0.25, 0.1, 0.04, 0.015)  # torus minor radius, major radius 0.5
 VIEW_COUNTS = (2, 4, 8, 16)
+VIEWS = 8  # the training views, where the view count is not what varies
 PROMPTS = {
     "in vocabulary": ("red plastic material with light haze, light dust",
                       "white ceramic material with heavy haze, glossy clearcoat",
@@ -108,7 +109,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--checkpoint", type=Path, default=gen.SHIPPED)
     ap.add_argument("--objects", type=int, default=2)
-    ap.add_argument("--steps", type=int, default=18)
+    ap.add_argument("--steps", type=int, default=DEFAULT_STEPS)
     ap.add_argument("--out", type=Path, default=REPO / "docs" / "generate_failures.json")
     args = ap.parse_args()
     torch.set_num_threads(1)
@@ -122,7 +123,7 @@ def main() -> int:
         for cap in ISLAND_CAPS:
             mesh, charts = unwrap(*surface, cap)
             row = {"object": obj.asset.asset_id, "max_chart_area": cap, "islands": charts,
-                   **measure(mesh, base, obj.prompt, model, cfg, args.steps, 8)}
+                   **measure(mesh, base, obj.prompt, model, cfg, args.steps, VIEWS)}
             report["islands"].append(row)
             print("islands", {k: row[k] for k in ("object", "islands", "seen", "inpainted", "round_trip_rms")},
                   flush=True)
@@ -135,7 +136,7 @@ def main() -> int:
     tube_prompt = "grey plastic material with light haze, light dust"
     for radius in TUBE_RADII:
         mesh, _ = unwrap(*primitive("torus", radius), None)
-        row = {"tube_radius": radius, **measure(mesh, grey, tube_prompt, model, cfg, args.steps, 8)}
+        row = {"tube_radius": radius, **measure(mesh, grey, tube_prompt, model, cfg, args.steps, VIEWS)}
         report["thin"].append(row)
         print("thin", {k: row[k] for k in ("tube_radius", "seen", "inpainted", "round_trip_rms")}, flush=True)
     annulus, _ = unwrap(*primitive("annulus", 0.35), None)

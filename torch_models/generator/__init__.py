@@ -3,4 +3,4 @@
 # Sampling steps and views of a generation, chosen from bench/generate_speed.py (docs/generate_speed.json).
 # Here, torch-free, so that the CLI's --help reads them without importing torch.
 DEFAULT_STEPS = 18
-DEFAULT_VIEWS = 8
+DEFAULT_VIEWS = 12
