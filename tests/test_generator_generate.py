@@ -90,3 +90,17 @@ def test_a_mostly_inpainted_texture_is_warned_about(checkpoint):
     assert any("inpainted from their neighbours" in w for w in one.warnings)
     many = gen.generate(inp, "silver metal with light dust", model, cfg, steps=1, views=8, texture_size=32)
     assert many.projection.stats(many.charts)["seen"] > one.projection.stats(one.charts)["seen"]
+
+
+def test_a_baked_metal_keeps_fuzz_off_and_its_base_colour(checkpoint, tmp_path):
+    baked = tmp_path / "baked"
+    baked.mkdir()
+    (baked / "params.json").write_text(json.dumps(
+        {"textures": {}, "constants": {"base_color": [0.9, 0.2, 0.1], "metalness": 1.0}}))
+    out = tmp_path / "out"
+    assert main(["generate", str(GLB), "--prompt", "soft velvet", "--out", str(out), "--views", "2", "--steps", "1",
+                 "--texture-size", "16", "--checkpoint", str(checkpoint), "--material", str(baked),
+                 "--no-preview"]) == 0
+    record = json.loads((out / "neural.json").read_text())
+    assert record["type"] == 1 and any("metal" in w for w in record["warnings"])  # not Type 4
+    assert np.allclose(read_exr(out / "base_color.exr").reshape(-1, 3), [0.9, 0.2, 0.1], atol=1e-3)

@@ -13,7 +13,8 @@ OUT/preview.png (the mesh rendered with the generated material).
 
 ``--material DIR`` takes the base colour from a baked enhanced-material folder
 (params.json, as the add-on's Bake writes it) instead of the mesh file, so the
-latents belong to the base colour the neural preview will use. ``--progress
+latents belong to the base colour the neural preview will use; its metalness
+turns fuzz/scattering prompts on metals into Types 1/3, as the enhancer does. ``--progress
 jsonl`` speaks the add-on's protocol (as ``fit`` does): ``{"event": "progress",
 "step", "total"}`` per sampling step, then ``{"event": "done", "out", "files",
 "type", "warnings"}``; bad input is ``{"event": "error", "message"}``, exit code 2.
@@ -43,7 +44,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="a train-generator run folder (default: the shipped generator)")
     parser.add_argument("--no-preview", action="store_true", help="skip the preview render")
     parser.add_argument("--material", type=Path, default=None,
-                        help="a baked enhanced-material folder whose base colour replaces the mesh file's")
+                        help="a baked enhanced-material folder whose base colour replaces the mesh file's "
+                             "(and whose metalness keeps fuzz/scattering off metals)")
     parser.add_argument("--progress", choices=("bar", "jsonl"), default="bar",
                         help="messages for people (default) or JSON lines on stdout (for the Blender add-on)")
 
@@ -56,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     from .cli import InputError, atomic_path, emit
     from .cli_enhance import write_exr
     from .generator import generate as gen
-    from .generator.mesh_input import baked_base_color, load_mesh
+    from .generator.mesh_input import load_mesh, use_baked_material
     from .neural import weights
 
     jsonl = args.progress == "jsonl"
@@ -68,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
         model, cfg = gen.load_generator(args.checkpoint or gen.SHIPPED)
         inp = load_mesh(args.mesh)
         if args.material is not None:
-            inp.base_color = baked_base_color(args.material)
+            use_baked_material(inp, args.material)
         decoder = weights.load()
     except (InputError, FileNotFoundError, ValueError, KeyError) as exc:
         if jsonl:

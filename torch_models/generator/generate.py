@@ -76,7 +76,7 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     """The latent texture of ``inp`` for ``prompt``; ``progress(step, steps)`` follows the sampling."""
     times: dict[str, float] = {}
     t0 = time.perf_counter()
-    type_, warnings = prompt_type(prompt, metallic=False)
+    type_, warnings = prompt_type(prompt, metallic=inp.metallic)
     res = cfg.model.size
     cams = orbit_cameras(views, res)
     cond_views = render_intrinsics(inp.mesh, cams, inp.base_color, supersample=cfg.corpus.supersample)

@@ -23,6 +23,7 @@ class MeshInput:
     base_color: np.ndarray  # (H, W, 3) linear, or (1, 1, 3) for a constant
     had_uvs: bool
     notes: list[str] = field(default_factory=list)
+    metallic: bool = False  # known from a baked material (use_baked_material); mesh files do not say
 
 
 def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
@@ -82,19 +83,26 @@ def load_mesh(path: Path) -> MeshInput:
     return MeshInput(mesh, base.astype(np.float32), had_uvs, notes)
 
 
-def baked_base_color(folder: Path) -> np.ndarray:
-    """(H, W, 3) or (1, 1, 3) linear base colour of a baked enhanced-material folder (params.json).
+def use_baked_material(inp: MeshInput, folder: Path) -> None:
+    """Take the base colour and metalness of a baked enhanced-material folder (params.json).
 
     The add-on bakes the material it previews; generating against that same base
-    colour keeps the latents and the preview's diffuse base in agreement."""
+    colour keeps the latents and the preview's diffuse base in agreement, and its
+    metalness lets the prompt's type follow the enhancer's rule for metals."""
     import json
 
+    from richmat_addon.core.enhance import METALLIC_THRESHOLD
     from ..neural.fit import read_exr
 
     params_file = folder / "params.json"
     if not params_file.is_file():
         raise ValueError(f"{folder}: not a baked material folder (no params.json)")
     params = json.loads(params_file.read_text())
-    if "base_color" in params["textures"]:
-        return read_exr(folder / params["textures"]["base_color"])[..., :3]
-    return np.asarray(params["constants"]["base_color"], np.float32).reshape(1, 1, 3)
+
+    def value(name: str) -> np.ndarray:
+        if name in params["textures"]:
+            return read_exr(folder / params["textures"][name])
+        return np.asarray(params["constants"][name], np.float32).reshape(1, 1, -1)
+
+    inp.base_color = value("base_color")[..., :3]
+    inp.metallic = float(value("metalness")[..., 0].mean()) > METALLIC_THRESHOLD
