@@ -6,10 +6,13 @@ OSL cannot define new BSDFs, so the preview splits the neural material
 * the diffuse base ``T(wi) c`` is a real ``diffuse()`` closure, lit by Cycles
   (every light, shadows, indirect light). The decoder outputs T from the same
   network as f, so it varies with wo although it should not; the torch
-  renderer reads it at every sampled wo, so the shader takes its mean over
-  ``t_samples`` cosine-distributed wo (read at the single point wo = wi, which
-  training never shows, it made the base 40 % too dark at normal incidence for one material, 13 % too bright over the
-  preview ball for two);
+  renderer reads it at every sampled wo, so the closure takes its mean over
+  ``t_samples`` cosine-distributed wo and an emission adds the covariance of T
+  and the world's radiance over them: world light then reaches the base as
+  ``c integral T L cos / pi``, as in the torch renderer. (Read at the single
+  point wo = wi, which training never shows, T made the base 40 % too dark at
+  normal incidence for one material and 12-14 % too bright over the preview
+  ball for two.)
 * the neural lobe is an ``emission()`` whose radiance is a Monte Carlo estimate
   of ``integral f_neu cos L_world dwo`` inside the shader: ``samples``
   directions from the sampling decoder (its mixture pdf), the decoder at each,
