@@ -243,6 +243,7 @@ def contact_sheet(record: dict, renders: Path, path: Path) -> None:
         draw.rectangle((0, 0, tile.width, 14), fill=(0, 0, 0))
         draw.text((4, 2), label, fill=(255, 255, 255))
         tiles.append(np.asarray(tile))
+    path.parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray(np.concatenate(tiles, 1)).save(path)
 
 
