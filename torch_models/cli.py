@@ -63,6 +63,11 @@ def emit(event: str, **fields: object) -> None:
     print(json.dumps({"event": event, **fields}), flush=True)
 
 
+def emit_done(out: Path, **fields: object) -> None:
+    """The protocol's last event: the output folder and the files in it."""
+    emit("done", out=str(out), files=sorted(f.name for f in out.iterdir() if f.is_file()), **fields)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")

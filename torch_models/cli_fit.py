@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     from safetensors.torch import load_file, save_file
     from tqdm import tqdm
 
-    from .cli import InputError, atomic_path, emit
+    from .cli import InputError, atomic_path, emit, emit_done
     from .neural import fit, weights
 
     jsonl = args.progress == "jsonl"
@@ -82,13 +82,13 @@ def run(args: argparse.Namespace) -> int:
             print(f"interrupted at step {latest['step']}; --resume continues from {state}")
             return 130
     record = write_latents(args.out, mv, z, fit.furnace(model, z))
-    record.update(decoder_sha256=model.digest, material=os.path.relpath(args.material, args.out), steps=args.steps,
-                  final_loss=latest["loss"])
+    record.update(decoder_sha256=model.digest, material=os.path.relpath(args.material, args.out),
+                  steps=args.steps, final_loss=latest["loss"])
     with atomic_path(args.out / "neural.json") as tmp:
         tmp.write_text(json.dumps(record, indent=1, sort_keys=True))
     state.unlink(missing_ok=True)
     if jsonl:
-        emit("done", out=str(args.out), files=sorted(f.name for f in args.out.iterdir() if f.is_file()))
+        emit_done(args.out)
         return 0
     print(f"fitted {len(mv.unique)} vectors ({mv.exact_unique} exact) for {record['texels']} texels; "
           f"furnace: {record['furnace']['passed']}/{len(z)} pass; wrote {args.out}")

@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from .cli import InputError, atomic_path, emit
+    from .cli import InputError, atomic_path, emit, emit_done
     from .cli_enhance import write_exr
     from .generator import generate as gen
     from .generator.mesh_input import load_mesh, use_baked_material
@@ -103,8 +103,7 @@ def run(args: argparse.Namespace) -> int:
     with atomic_path(args.out / "neural.json") as tmp:
         tmp.write_text(json.dumps(record, indent=1))
     if jsonl:
-        emit("done", out=str(args.out), files=sorted(f.name for f in args.out.iterdir() if f.is_file()),
-             type=result.type, warnings=result.warnings)
+        emit_done(args.out, type=result.type, warnings=result.warnings)
         return 0
     for w in result.warnings:
         print(f"warning: {w}")

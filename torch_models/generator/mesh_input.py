@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from richmat_addon.core.gltf_materials import srgb_to_linear
+
 from .views import Mesh
 
 
@@ -26,10 +28,6 @@ class MeshInput:
     metallic: bool = False  # known from a baked material (use_baked_material); mesh files do not say
 
 
-def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
 def _base_colour(part) -> tuple[np.ndarray, np.ndarray | None]:  # part: trimesh.Trimesh
     """(factor (3,) linear, texture (H, W, 3) linear or None) of a part's material."""
     material = getattr(part.visual, "material", None)
@@ -40,7 +38,7 @@ def _base_colour(part) -> tuple[np.ndarray, np.ndarray | None]:  # part: trimesh
             factor = np.asarray(material.baseColorFactor[:3], np.float64) / 255.0
         image = getattr(material, "baseColorTexture", None) or getattr(material, "image", None)
         if image is not None:
-            texture = _srgb_to_linear(np.asarray(image.convert("RGB"), np.float64) / 255.0)
+            texture = srgb_to_linear(np.asarray(image.convert("RGB"), np.float64) / 255.0)
     else:
         factor = np.full(3, 0.8)
     return factor, texture
