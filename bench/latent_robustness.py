@@ -32,7 +32,7 @@ sys.path[:0] = [str(REPO), str(REPO / "bench")]
 from agreement_cases import cases  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference  # noqa: E402
-from torch_models.neural.fit import fit_latents  # noqa: E402
+from torch_models.neural.fit import fit_latents, guard  # noqa: E402
 from torch_models.neural.validity import Validity, check_latents, enlarged, training_latent_box  # noqa: E402
 
 NOISE = 0.05
@@ -65,7 +65,7 @@ def main() -> None:
     perturbed = fitted + noise
     set_b, guarded_b = raw_and_guarded(model, perturbed, args.seed)
     print(f"(b) fitted +-{NOISE}: raw {set_b.summary()}, guarded {guarded_b.summary()}", flush=True)
-    scale_b = set_b.furnace.energy_scale()
+    scale_b = guard(model, perturbed, seed=args.seed)
 
     setup = BallSetup.default(resolution=96, spp=32, seed=args.seed)
     rows = []
@@ -101,7 +101,7 @@ def main() -> None:
 def raw_and_guarded(model: weights.NeuralModel, z: torch.Tensor, seed: int) -> tuple[Validity, Validity]:
     """Validity of the latents as decoded, and with the energy guard (re-checked on fresh samples)."""
     raw = check_latents(model, z, seed=seed)
-    guarded = check_latents(model, z, seed=seed + 1000, energy_scale=raw.furnace.energy_scale())
+    guarded = check_latents(model, z, seed=seed + 1000, energy_scale=guard(model, z, seed=seed))
     return raw, guarded
 
 

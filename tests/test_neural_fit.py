@@ -129,9 +129,10 @@ def test_furnace_recheck_of_repaired_latents_passes(tiny_weights: Path) -> None:
     from torch_models.neural.weights import load
 
     model = load(tiny_weights)
+    model.decoder.net[-1].bias[:3] += 1.0  # f * cos up by e: some latents now gain energy, the repair has work
     z = torch.rand(64, 6, generator=torch.Generator().manual_seed(3)) * 2 - 1
     first = fit.furnace(model, z, n=1024)
-    assert first.failing.any()  # a barely trained decoder gains energy somewhere: the repair has work
+    assert first.failing.any()
     again = fit.furnace(model, z, n=1024, seed=5, energy_scale=first.energy_scale())
     assert again.albedos.shape == (64, len(fit.VIEW_COSINES))
     assert not again.failing.any()

@@ -24,7 +24,7 @@ OSL cannot define new BSDFs, so the preview splits the neural material
 The network weights are written into the source as constant arrays, so the
 shader needs nothing but its latent textures. Layer layout and activations
 follow ``torch_models/neural/networks.py`` exactly: decoder input
-``[z(6), wi, wo, h, wi.h]``, ReLU hidden layers, outputs ``exp(min(x, 12))``
+``[z(6), wi, wo, h, wi.h]``, ReLU hidden layers, outputs ``max(exp(min(x, 12)) - 1, 0)``
 for f*cos (zero below either horizon), sigmoid for T and R; sampling decoder
 input ``[z(6), wi]`` with the tilted-cosine + sheared-GGX mixture. Directions
 are local to the Duff et al. tangent frame the torch renderer uses.
@@ -104,7 +104,7 @@ void decode(float z[6], vector wi, vector wo, output color f, output float T)
     float y[5];
     decoder_mlp(x, y);
     float above = (wi[2] > 0 && wo[2] > 0) ? 1.0 : 0.0;
-    f = color(exp(min(y[0], MAX_LOG_F)), exp(min(y[1], MAX_LOG_F)), exp(min(y[2], MAX_LOG_F))) * above;
+    f = max(color(exp(min(y[0], MAX_LOG_F)), exp(min(y[1], MAX_LOG_F)), exp(min(y[2], MAX_LOG_F))) - 1.0, color(0.0)) * above;
     T = sigmoid(y[3]);
 }
 

@@ -64,8 +64,11 @@ class Batch:
     t: Tensor  # (N, 1)
     r: Tensor  # (N, 1)
 
+    def to(self, device: torch.device) -> "Batch":
+        return Batch(*(getattr(self, k).to(device) for k in self.__dataclass_fields__))
 
-def _cosine_hemisphere(n: int, gen: torch.Generator) -> Tensor:
+
+def cosine_hemisphere(n: int, gen: torch.Generator) -> Tensor:
     u = torch.rand(n, 2, generator=gen)
     r, phi = u[:, 0].sqrt(), 2 * torch.pi * u[:, 1]
     return torch.stack([r * phi.cos(), r * phi.sin(), (1 - u[:, 0]).clamp(min=1e-6).sqrt()], -1)
@@ -81,7 +84,7 @@ def make_batch(pool: Tensor, n: int, gen: torch.Generator) -> Batch:
     """A batch of n (material, wi, wo) samples from a pool of parameter vectors."""
     index = torch.randint(len(pool), (n,), generator=gen)
     vectors = pool[index]
-    wi = _cosine_hemisphere(n, gen)
+    wi = cosine_hemisphere(n, gen)
     grazing = torch.rand(n, generator=gen) < 0.2
     wi[grazing] = _uniform_hemisphere(int(grazing.sum()), gen)
     bsdf = LayeredBsdf(params_from_vectors(vectors), torch.ones(1, 3))

@@ -2,10 +2,15 @@
 
 - ``Encoder``: the 22 material parameters (normalised to [0, 1] by the schema's
   bounds) to a 6D latent in the box (-1, 1)^6 (tanh), so generated and perturbed
-  latents have a known range.
-- ``Decoder``: latent + directions to f_neu * cos(theta_o) (RGB, exponential
-  output, pre-activation clamped), T(wi) (sigmoid) and R(wi) (sigmoid). T and R
-  depend on wi only, but share the network: they are read at any wo.
+  latents have a known range. Training keeps the pre-activation inside +-2
+  (``saturation``): a saturated tanh passes no gradient, and the first
+  decoder kept only two of its six latent dimensions alive that way.
+- ``Decoder``: latent + directions to f_neu * cos(theta_o) (RGB), T(wi)
+  (sigmoid) and R(wi) (sigmoid). The network's f outputs y are log(1 + f * cos),
+  the quantity the loss compares, and f * cos = max(exp(min(y, 12)) - 1, 0).
+  A plain exp output (f = exp(y)) was trained through log(1 + exp(y)), whose
+  gradient vanishes wherever f is small: most of the hemisphere. T and R depend
+  on wi only, but share the network: they are read at any wo.
 - ``SamplingDecoder``: latent + wi to a two-component analytic mixture, a tilted
   cosine lobe and an anisotropic, sheared, offset GGX lobe in slope space
   (Zeltner et al. 2024), with an exact pdf.
@@ -26,6 +31,7 @@ from richmat_addon.core.schema import bounds
 LATENT = 6
 DIRECTION_FEATURES = 10
 MAX_LOG_F = 12.0  # exp(12) ~ 1.6e5: above any f*cos a GGX lobe with alpha >= 1e-2 reaches
+SATURATION = 2.0  # encoder pre-activations beyond +-2 are penalised in training (tanh(2) = 0.96)
 
 
 def mlp(n_in: int, width: int, depth: int, n_out: int) -> nn.Sequential:
@@ -53,8 +59,16 @@ class Encoder(nn.Module):
         super().__init__()
         self.net = mlp(len(bounds()[0]), width, depth, LATENT)
 
+    def pre_activation(self, vectors: Tensor) -> Tensor:
+        return self.net(normalise_params(vectors))
+
     def forward(self, vectors: Tensor) -> Tensor:
-        return torch.tanh(self.net(normalise_params(vectors)))
+        return torch.tanh(self.pre_activation(vectors))
+
+
+def saturation(pre_activation: Tensor) -> Tensor:
+    """Mean squared excess of encoder pre-activations beyond +-SATURATION: the training penalty."""
+    return torch.relu(pre_activation.abs() - SATURATION).pow(2).mean()
 
 
 class Decoder(nn.Module):
@@ -65,11 +79,15 @@ class Decoder(nn.Module):
         self.width, self.depth = width, depth
         self.net = mlp(LATENT + DIRECTION_FEATURES, width, depth, 5)
 
-    def forward(self, latent: Tensor, wi: Tensor, wo: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+    def log_forward(self, latent: Tensor, wi: Tensor, wo: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        """(log(1 + f * cos) before the horizon mask, T, R): what training compares with targets."""
         out = self.net(torch.cat([latent, direction_features(wi, wo)], -1))
-        above = ((wi[:, 2:3] > 0) & (wo[:, 2:3] > 0)).to(out.dtype)
-        f = torch.exp(out[:, :3].clamp(max=MAX_LOG_F)) * above
-        return f, torch.sigmoid(out[:, 3:4]), torch.sigmoid(out[:, 4:5])
+        return out[:, :3], torch.sigmoid(out[:, 3:4]), torch.sigmoid(out[:, 4:5])
+
+    def forward(self, latent: Tensor, wi: Tensor, wo: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        y, t, r = self.log_forward(latent, wi, wo)
+        above = ((wi[:, 2:3] > 0) & (wo[:, 2:3] > 0)).to(y.dtype)
+        return (torch.exp(y.clamp(max=MAX_LOG_F)) - 1.0).clamp(min=0.0) * above, t, r
 
 
 def _tanh_approx(x: Tensor) -> Tensor:

@@ -1,9 +1,14 @@
 """Training of the universal encoder/decoder, then of the sampling decoder.
 
 Phase 1 trains encoder and decoder together (an autoencoder through the BRDF):
-z = encoder(params) + U(-jitter, jitter), loss = 0.95 L1(log(1 + f)) + 0.04 L1(T)
-+ 0.01 L1(R). f spans ten decades, so its L1 is taken on log(1 + f) (targets
-clamped to the decoder's exp ceiling). Phase 2 goes on with the same loss plus
+z = encoder(params) + U(-jitter, jitter), loss = 0.95 (L1(e) + c L2(e - mean_rgb e))
++ 0.04 L1(T) + 0.01 L1(R), with e = the error of log(1 + f) per channel (f spans
+ten decades; targets clamped to the decoder's ceiling), plus a penalty on
+saturated encoder outputs (``networks.saturation``). The chroma term (weight c)
+is ours, not the paper's: while the grey error exceeds the colour difference,
+per-channel L1 gives all three channels the same sign of gradient, and a decoder
+trained with L1 alone decoded every metal grey (docs/neural-material.md).
+Phase 2 goes on with the same loss plus
 an energy penalty on latents no material maps to (uniform in the enlarged
 training latent box, and encoded latents perturbed by ten times the jitter):
 their white-furnace albedo above 1, so generated or edited latents do not gain
@@ -27,11 +32,12 @@ from pathlib import Path
 import numpy as np
 import torch
 from safetensors.torch import load_file, save_file
-from torch import Tensor
+from torch import Tensor, nn
 
 from ..brdf.model import luminance
-from .data import make_batch, parameter_vectors
-from .networks import MAX_LOG_F, Decoder, Encoder, SamplingDecoder
+from ..distributed import Placement, data_parallel, placement
+from .data import Batch, cosine_hemisphere, make_batch, parameter_vectors
+from .networks import MAX_LOG_F, Decoder, Encoder, SamplingDecoder, saturation
 
 LOSS_WEIGHTS = (0.95, 0.04, 0.01)  # f, T, R (paper sec. 4)
 
@@ -51,11 +57,14 @@ class TrainConfig:
     energy_weight: float = 1.0
     energy_latents: int = 256  # latents per penalty estimate, half uniform in the box, half perturbed
     energy_samples: int = 256  # cosine-sampled wo per latent
+    chroma_weight: float = 10.0
+    saturation_weight: float = 0.1
     lr: float = 2e-3
     lr_final: float = 2e-5
     jitter: float = 0.005
     checkpoint_every: int = 500
     threads: int = 0  # torch threads; 0 keeps torch's default
+    device: str = "cpu"  # "cuda": one GPU per torchrun rank
     history: list[dict] = field(default_factory=list)
 
     @classmethod
@@ -63,11 +72,13 @@ class TrainConfig:
         return cls(**json.loads(path.read_text()))
 
 
-def decoder_loss(dec: Decoder, z: Tensor, batch) -> Tensor:  # type: ignore[no-untyped-def]
-    f, t, r = dec(z, batch.wi, batch.wo)
-    target = batch.f.clamp(max=math.exp(MAX_LOG_F))
+def decoder_loss(dec: Decoder, z: Tensor, batch: Batch, chroma_weight: float = TrainConfig.chroma_weight) -> Tensor:
+    """The training (and fitting) loss of latents z against a batch of analytic targets."""
+    y, t, r = dec.log_forward(z, batch.wi, batch.wo)
+    err = y - torch.log1p(batch.f.clamp(max=math.expm1(MAX_LOG_F)))
+    chroma = err - err.mean(-1, keepdim=True)
     wf, wt, wr = LOSS_WEIGHTS
-    return (wf * (torch.log1p(f) - torch.log1p(target)).abs().mean()
+    return (wf * (err.abs().mean() + chroma_weight * chroma.pow(2).mean())
             + wt * (t - batch.t).abs().mean() + wr * (r - batch.r).abs().mean())
 
 
@@ -91,9 +102,7 @@ def energy_penalty(dec: Decoder, z: Tensor, n: int, gen: torch.Generator) -> Ten
     m = len(z)
     mu = 0.05 + 0.95 * torch.rand(m, 1, generator=gen)
     wi = torch.cat([(1 - mu * mu).sqrt(), torch.zeros_like(mu), mu], -1).repeat_interleave(n, 0)
-    u = torch.rand(m * n, 2, generator=gen)
-    r, phi = u[:, 0].sqrt(), 2 * math.pi * u[:, 1]
-    wo = torch.stack([r * phi.cos(), r * phi.sin(), (1 - u[:, 0]).clamp(min=1e-7).sqrt()], -1)
+    wi, wo = wi.to(z.device), cosine_hemisphere(m * n, gen).to(z.device)
     f, t, _ = dec(z.repeat_interleave(n, 0), wi, wo)
     albedo = (f * (math.pi / wo[:, 2:3]) + t).reshape(m, n, 3).mean(1)
     return torch.relu(albedo - 1.0).sum(-1).mean()
@@ -103,23 +112,77 @@ def _cosine_lr(cfg: TrainConfig, step: int, total: int) -> float:
     return cfg.lr_final + 0.5 * (cfg.lr - cfg.lr_final) * (1 + math.cos(math.pi * min(step / total, 1.0)))
 
 
-class Trainer:
-    """Holds the networks, optimiser and data buffer; ``run`` trains and checkpoints."""
+class Objective(nn.Module):
+    """Phases 1 and 2 as one module call, so DistributedDataParallel can average the
+    gradients of encoder and decoder together."""
 
-    def __init__(self, cfg: TrainConfig, out: Path) -> None:
+    def __init__(self, encoder: Encoder, decoder: Decoder, cfg: TrainConfig) -> None:
+        super().__init__()
+        self.encoder, self.decoder, self.cfg = encoder, decoder, cfg
+
+    def forward(self, batch: Batch, gen: torch.Generator, box: tuple[Tensor, Tensor] | None = None) -> Tensor:
+        """Loss of a batch; with the latent ``box`` (phase 2) plus the energy penalty."""
+        cfg = self.cfg
+        pre = self.encoder.pre_activation(batch.vectors)
+        z = torch.tanh(pre)
+        z = z + cfg.jitter * (2 * torch.rand(z.shape, generator=gen) - 1).to(z.device)
+        loss = decoder_loss(self.decoder, z, batch, cfg.chroma_weight) + cfg.saturation_weight * saturation(pre)
+        if box is not None:
+            odd = odd_latents(z.detach(), box, cfg.energy_latents // 2, gen)
+            loss = loss + cfg.energy_weight * energy_penalty(self.decoder, odd, cfg.energy_samples, gen)
+        return loss
+
+
+class SamplerObjective(nn.Module):
+    """Phase 3 as one module call (the decoder stays frozen and outside the module)."""
+
+    def __init__(self, sampler: SamplingDecoder) -> None:
+        super().__init__()
+        self.sampler = sampler
+
+    def forward(self, decoder: Decoder, z: Tensor, wi: Tensor, u: Tensor) -> Tensor:
+        return sampler_loss(self.sampler, decoder, z, wi, u)
+
+
+def odd_latents(z: Tensor, box: tuple[Tensor, Tensor], n: int, gen: torch.Generator) -> Tensor:
+    """Latents no training material maps to: n uniform in the (enlarged) training latent
+    box, n encoded latents perturbed by +-0.05 (ten times the jitter)."""
+    lo, hi = box
+    uniform = lo + (hi - lo) * torch.rand(n, len(lo), generator=gen).to(z.device)
+    perturbed = z[:n] + 0.05 * (2 * torch.rand(n, z.shape[1], generator=gen) - 1).to(z.device)
+    return torch.cat([uniform, perturbed])
+
+
+class Trainer:
+    """Holds the networks, optimiser and data buffer; ``run`` trains and checkpoints.
+
+    Under ``torchrun`` each rank draws its own data (generators seeded with the
+    rank) and rank 0 alone writes checkpoints."""
+
+    def __init__(self, cfg: TrainConfig, out: Path, where: Placement | None = None) -> None:
         self.cfg, self.out = cfg, out
+        self.where = where or placement(cfg.device)
         torch.manual_seed(cfg.seed)
         if cfg.threads:
             torch.set_num_threads(cfg.threads)
-        self.encoder, self.decoder = Encoder(), Decoder(cfg.width, cfg.depth)
-        self.sampler = SamplingDecoder()
+        device = self.where.device
+        self.encoder, self.decoder = Encoder().to(device), Decoder(cfg.width, cfg.depth).to(device)
+        self.sampler = SamplingDecoder().to(device)
+        self.objective = data_parallel(Objective(self.encoder, self.decoder, cfg), self.where)
+        self.sampler_objective = data_parallel(SamplerObjective(self.sampler), self.where)
         self.step = 0
         self.box: tuple[Tensor, Tensor] | None = None  # training latent box, set when phase 2 starts
-        self.gen = torch.Generator().manual_seed(cfg.seed)
+        self.gen = torch.Generator().manual_seed(self._data_seed(0))
         self.pool = torch.from_numpy(parameter_vectors(cfg.pool, np.random.default_rng(cfg.seed)))
-        self.buffer = [make_batch(self.pool, cfg.batch, self.gen) for _ in range(cfg.buffer_batches)]
+        self.buffer = [self._new_batch() for _ in range(cfg.buffer_batches)]
         self.opt = torch.optim.Adam([*self.encoder.parameters(), *self.decoder.parameters()], lr=cfg.lr)
         self.sampler_opt = torch.optim.Adam(self.sampler.parameters(), lr=1e-3)
+
+    def _data_seed(self, step: int) -> int:
+        return (self.cfg.seed + step) * 1024 + self.where.rank
+
+    def _new_batch(self) -> Batch:
+        return make_batch(self.pool, self.cfg.batch, self.gen).to(self.where.device)
 
     # ---- checkpoints ---------------------------------------------------------------
     def weights(self) -> dict[str, Tensor]:
@@ -130,6 +193,9 @@ class Trainer:
 
     def save(self) -> None:
         from ..cli import atomic_path
+
+        if not self.where.is_main:
+            return
 
         self.out.mkdir(parents=True, exist_ok=True)
         with atomic_path(self.out / "weights.safetensors") as tmp:
@@ -148,7 +214,7 @@ class Trainer:
             net.load_state_dict({k[len(name) + 1:]: v for k, v in tensors.items() if k.startswith(name + ".")})
         self.step = state["step"]
         self.cfg.history = state["config"]["history"]
-        self.gen.manual_seed(self.cfg.seed + self.step)  # fresh data after a resume, reproducibly
+        self.gen.manual_seed(self._data_seed(self.step))  # fresh data after a resume, reproducibly
         return True
 
     # ---- training -------------------------------------------------------------------
@@ -157,42 +223,31 @@ class Trainer:
         (a low constant rate, plus the energy penalty)."""
         cfg = self.cfg
         if self.step % cfg.refresh_every == 0:
-            self.buffer[(self.step // cfg.refresh_every) % len(self.buffer)] = make_batch(self.pool, cfg.batch,
-                                                                                          self.gen)
+            self.buffer[(self.step // cfg.refresh_every) % len(self.buffer)] = self._new_batch()
         batch = self.buffer[torch.randint(len(self.buffer), (1,), generator=self.gen).item()]
         for group in self.opt.param_groups:
             group["lr"] = 5 * cfg.lr_final if energy else _cosine_lr(cfg, self.step, cfg.steps)
-        z = self.encoder(batch.vectors)
-        z = z + cfg.jitter * (2 * torch.rand(z.shape, generator=self.gen) - 1)
-        loss = decoder_loss(self.decoder, z, batch)
-        if energy:
-            loss = loss + cfg.energy_weight * energy_penalty(self.decoder, self._odd_latents(z.detach()),
-                                                             cfg.energy_samples, self.gen)
+        loss = self.objective(batch, self.gen, self._latent_box() if energy else None)
         self.opt.zero_grad()
         loss.backward()
         self.opt.step()
         return loss.item()
 
-    def _odd_latents(self, z: Tensor) -> Tensor:
-        """Latents no training material maps to: half uniform in the training latent box
-        enlarged by 10 %, half encoded latents perturbed by +-0.05 (ten times the jitter)."""
+    def _latent_box(self) -> tuple[Tensor, Tensor]:
+        """The encoded pool's bounding box enlarged by 10 %, fixed when phase 2 starts."""
         if self.box is None:
             with torch.no_grad():
-                pool_z = self.encoder(self.pool)
+                pool_z = self.encoder(self.pool.to(self.where.device))
             lo, hi = pool_z.min(0).values, pool_z.max(0).values
             self.box = ((lo + hi) / 2 - 0.55 * (hi - lo), (lo + hi) / 2 + 0.55 * (hi - lo))
-        half = self.cfg.energy_latents // 2
-        lo, hi = self.box
-        uniform = lo + (hi - lo) * torch.rand(half, len(lo), generator=self.gen)
-        perturbed = z[:half] + 0.05 * (2 * torch.rand(half, z.shape[1], generator=self.gen) - 1)
-        return torch.cat([uniform, perturbed])
+        return self.box
 
     def _sampler_step(self) -> float:
         batch = self.buffer[torch.randint(len(self.buffer), (1,), generator=self.gen).item()]
         with torch.no_grad():
             z = self.encoder(batch.vectors)
-        u = torch.rand(len(z), 3, generator=self.gen)
-        loss = sampler_loss(self.sampler, self.decoder, z, batch.wi, u)
+        u = torch.rand(len(z), 3, generator=self.gen).to(z.device)
+        loss = self.sampler_objective(self.decoder, z, batch.wi, u)
         self.sampler_opt.zero_grad()
         loss.backward()
         self.sampler_opt.step()
@@ -207,7 +262,7 @@ class Trainer:
         total = sum(length for _, length, _ in phases)
         losses: list[float] = []
         start = time.perf_counter()
-        with tqdm(total=total, initial=self.step, desc="train", unit="step") as bar:
+        with tqdm(total=total, initial=self.step, desc="train", unit="step", disable=not self.where.is_main) as bar:
             while self.step < total:
                 end = 0
                 for phase, length, step_fn in phases:
@@ -224,7 +279,8 @@ class Trainer:
                                         "seconds": time.perf_counter() - start})
                     losses = []
                     self.save()
-                    plot_history(cfg.history, self.out / "training_curve.png")
+                    if self.where.is_main:
+                        plot_history(cfg.history, self.out / "training_curve.png")
 
 
 def plot_history(history: list[dict], path: Path) -> None:
@@ -237,7 +293,7 @@ def plot_history(history: list[dict], path: Path) -> None:
     for ax, phase in zip(axes, ("decoder", "energy", "sampler")):
         rows = [h for h in history if h["phase"] == phase]
         if rows:
-            ax.plot([h["step"] for h in rows], [h["loss"] for h in rows])
+            ax.plot([h["step"] for h in rows], [h["loss"] for h in rows], marker="o", ms=3)
         ax.set_title(f"{phase} loss")
         ax.set_xlabel("step")
         ax.set_yscale("symlog" if phase == "sampler" else "log")
