@@ -9,9 +9,8 @@ object and overall: PSNR (display-referred, over the object's pixels) and mean
 FLIP, for the generator and three baselines:
 - pbr: the plain PBR material (core.enhance.baseline), no enhancement;
 - procedural: core.enhance with the type the prompt names and the draws of
-  another enhancement seed (the corpus enhances with seed 0, and its draws depend
-  only on the seed and the material's name, so seed 0 would hand this baseline
-  the object's own settings);
+  another enhancement seed (the object's own seed would hand this baseline the
+  object's own settings);
 - retrieval: the mean latent of the training object whose caption embedding is
   closest to the prompt's, as one constant material.
 Validity: the share of generated texels whose latent fails the white furnace
@@ -57,7 +56,7 @@ from torch_models.render.tonemap import agx  # noqa: E402
 SKIPPED_METRICS = "CLIP-FID, CMMD, LPIPS: skipped (their network weights are not available offline)"
 METHODS = ("generated", "pbr", "procedural", "retrieval")
 # Other enhancements for the gallery, in the captions' own words (Type 0, 1, 2, 4).
-PROCEDURAL_BASELINE_SEED = 1
+PROCEDURAL_BASELINE_SEED = 2 ** 40  # no object's own draws (corpus.enhancement_seed stays far below)
 GALLERY_ENDINGS = ("light haze", "heavy haze, heavy dust", "light haze, glossy clearcoat",
                    "moderate haze, heavy fuzz, light subsurface scattering")
 
@@ -84,7 +83,8 @@ def held_out(index: int, cfg: GeneratorTrainConfig) -> HeldOut:
     asset = procedural.make_asset(index, size, seed)
     metallic = is_metallic(asset.pbr)
     type_ = corpus._type_for(asset.asset_id, metallic, seed)
-    material = enhance(asset.pbr, type_, seed, ParamMap(asset.world_normals), ParamMap(asset.world_positions))
+    material = enhance(asset.pbr, type_, corpus.enhancement_seed(seed, index), ParamMap(asset.world_normals),
+                       ParamMap(asset.world_positions))
     prompt = corpus.caption_for(asset.shape, material, metallic)
     return HeldOut(asset, material, prompt, type_, MeshInput(asset.mesh, asset.pbr.base_color.value, True))
 

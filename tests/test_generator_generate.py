@@ -103,3 +103,14 @@ def test_a_baked_metal_keeps_fuzz_off_and_its_base_colour(checkpoint, tmp_path):
     record = json.loads((out / "neural.json").read_text())
     assert record["type"] == 1 and any("metal" in w for w in record["warnings"])  # not Type 4
     assert np.allclose(read_exr(out / "base_color.exr").reshape(-1, 3), [0.9, 0.2, 0.1], atol=1e-3)
+
+
+def test_a_generator_trained_for_another_decoder_is_flagged(tmp_path: Path) -> None:
+    from torch_models.generator.generate import decoder_mismatch
+
+    (tmp_path / "state.json").write_text(json.dumps({"decoder_sha256": "a" * 64}))
+    assert decoder_mismatch(tmp_path, "a" * 64) is None
+    warning = decoder_mismatch(tmp_path, "b" * 64)
+    assert warning is not None and "aaaaaaaaaaaa" in warning and "bbbbbbbbbbbb" in warning
+    (tmp_path / "state.json").write_text(json.dumps({}))
+    assert decoder_mismatch(tmp_path, "b" * 64) is None  # older runs recorded nothing

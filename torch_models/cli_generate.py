@@ -82,6 +82,9 @@ def run(args: argparse.Namespace) -> int:
 
     result = gen.generate(inp, args.prompt, model, cfg, args.seed, args.steps, args.views, args.guidance,
                           args.texture_size, progress if jsonl else None)
+    mismatch = gen.decoder_mismatch(args.checkpoint or gen.SHIPPED, decoder.digest)
+    if mismatch:
+        result.warnings.append(mismatch)
     args.out.mkdir(parents=True, exist_ok=True)
     write_exr(args.out / "latent_0.exr", result.latents[..., :3])
     write_exr(args.out / "latent_1.exr", result.latents[..., 3:])

@@ -39,6 +39,17 @@ def load_generator(folder: Path = SHIPPED) -> tuple[LatentGenerator, GeneratorTr
     return model.eval().requires_grad_(False), cfg
 
 
+def decoder_mismatch(folder: Path, decoder_digest: str) -> str | None:
+    """A warning when the generator at ``folder`` learned the latents of another decoder:
+    its output would decode to materials it never meant."""
+    trained = json.loads((folder / "state.json").read_text()).get("decoder_sha256")
+    if trained is None or trained == decoder_digest:
+        return None
+    return (f"this generator was trained on latents of decoder {trained[:12]}, but the decoder in use is "
+            f"{decoder_digest[:12]}: its materials will not be the ones the prompt asks for; "
+            "retrain it with `python -m torch_models train-generator`")
+
+
 def diffuse_fallback_latent() -> Tensor:
     """(6,) the shipped encoder's latent of a plain rough dielectric: what unseen UV islands get."""
     from richmat_addon.core.enhance import baseline

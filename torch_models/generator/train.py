@@ -3,14 +3,12 @@
 Every step draws its batch and noise from a generator seeded by (seed, step,
 rank), and checkpoints hold the weights and the Adam moments, so a run that is
 stopped and resumed takes exactly the steps an uninterrupted run takes (tested).
-Under ``torchrun`` (WORLD_SIZE > 1) the model is wrapped in DistributedDataParallel
-and each rank draws its own batch; rank 0 writes the checkpoints.
+Under ``torchrun`` the model is data-parallel (``torch_models/distributed.py``).
 """
 from __future__ import annotations
 
 import json
 import math
-import os
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -19,6 +17,8 @@ import torch
 from safetensors.torch import load_file, save_file
 from torch import Tensor
 
+from ..distributed import data_parallel, placement
+from ..neural import weights
 from . import corpus
 from .dit import Conditions, DitConfig, LatentGenerator
 
@@ -96,27 +96,20 @@ class GeneratorTrainer:
         self.cfg, self.out = cfg, out
         if cfg.threads:
             torch.set_num_threads(cfg.threads)
-        self.rank, self.world = int(os.environ.get("RANK", 0)), int(os.environ.get("WORLD_SIZE", 1))
-        self.device = torch.device(cfg.device if cfg.device != "cuda" or self.world == 1
-                                   else f"cuda:{int(os.environ.get('LOCAL_RANK', 0))}")
+        where = placement(cfg.device)
+        self.rank, self.world, self.device = where.rank, where.world, where.device
         train = [s for s in samples if not corpus.is_held_out(s.asset_id)]
         if not train:
             raise ValueError("the corpus has no training objects")
         self.target, self.cond, self.text, self.type = (t.to(self.device) for t in _stack(train))
         torch.manual_seed(cfg.seed)
         self.model = LatentGenerator(cfg.model).to(self.device)
-        self.module: torch.nn.Module = self.model
-        if self.world > 1:
-            import torch.distributed as dist
-
-            if not dist.is_initialized():
-                dist.init_process_group("nccl" if self.device.type == "cuda" else "gloo")
-            self.module = torch.nn.parallel.DistributedDataParallel(
-                self.model, device_ids=[self.device.index] if self.device.type == "cuda" else None)
+        self.module = data_parallel(self.model, where)
         self.opt = torch.optim.AdamW(self.model.parameters(), lr=cfg.lr, weight_decay=0.0)
         self.step = 0
         self.history: list[dict] = []
         self.train_objects = len(train)
+        self.decoder_digest = weights.load().digest  # the corpus latents are the shipped encoder's
 
     # ---- checkpoints ---------------------------------------------------------------
     def save(self) -> None:
@@ -135,7 +128,7 @@ class GeneratorTrainer:
         with atomic_path(self.out / "optimizer.safetensors") as tmp:
             save_file(moments, str(tmp))
         state = {"step": self.step, "config": self.cfg.to_dict(), "history": self.history,
-                 "train_objects": self.train_objects}
+                 "train_objects": self.train_objects, "decoder_sha256": self.decoder_digest}
         with atomic_path(self.out / "state.json") as tmp:
             tmp.write_text(json.dumps(state, indent=1))
         plot_history(self.history, self.out / "training_curve.png")
