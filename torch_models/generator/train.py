@@ -109,7 +109,7 @@ class GeneratorTrainer:
         self.step = 0
         self.history: list[dict] = []
         self.train_objects = len(train)
-        self.decoder_digest = weights.load().digest  # the corpus latents are the shipped encoder's
+        self.decoder_digest = weights.digest()  # the corpus latents are the shipped encoder's
 
     # ---- checkpoints ---------------------------------------------------------------
     def save(self) -> None:

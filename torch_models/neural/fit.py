@@ -233,9 +233,8 @@ def _furnace_pass(model: NeuralModel, z: Tensor, n: int, seed: int, scale: Tenso
                                  model.sampler.sample(zk, wi_k, torch.rand(m * n, 3, generator=gen)))
                 pdf = 0.5 * wo[:, 2].clamp(min=0.0) / math.pi + 0.5 * model.sampler.pdf(zk, wi_k, wo)
                 f, t, _ = model.decoder(zk, wi_k, wo)
-                f = f * scale[k0:k0 + m].repeat_interleave(n, 0)[:, None]
-                f = torch.where((wo[:, 2:3] > 0) & (pdf[:, None] > 0), f / pdf.clamp(min=1e-12)[:, None],
-                                torch.zeros_like(f))
+                # f is 0 below the horizon, the only place the mixture's pdf can be 0
+                f = f * scale[k0:k0 + m].repeat_interleave(n, 0)[:, None] / pdf.clamp(min=1e-12)[:, None]
                 est = (f + t).reshape(m, n, 3)
                 channel = est.mean(1).argmax(1)  # the brightest channel must stay <= 1
                 est = est.gather(2, channel[:, None, None].expand(m, n, 1))[..., 0]
@@ -243,4 +242,3 @@ def _furnace_pass(model: NeuralModel, z: Tensor, n: int, seed: int, scale: Tenso
                 out.std_errors[k0:k0 + m, a] = est.std(1) / math.sqrt(n)
                 out.transmissions[k0:k0 + m, a] = t.reshape(m, n)[:, 0]
     return out
-

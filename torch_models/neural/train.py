@@ -35,7 +35,7 @@ from safetensors.torch import load_file, save_file
 from torch import Tensor, nn
 
 from ..brdf.model import luminance
-from ..distributed import Placement, data_parallel, placement
+from ..distributed import data_parallel, placement
 from .data import Batch, cosine_hemisphere, make_batch, parameter_vectors
 from .networks import MAX_LOG_F, Decoder, Encoder, SamplingDecoder, saturation
 
@@ -159,9 +159,9 @@ class Trainer:
     Under ``torchrun`` each rank draws its own data (generators seeded with the
     rank) and rank 0 alone writes checkpoints."""
 
-    def __init__(self, cfg: TrainConfig, out: Path, where: Placement | None = None) -> None:
+    def __init__(self, cfg: TrainConfig, out: Path) -> None:
         self.cfg, self.out = cfg, out
-        self.where = where or placement(cfg.device)
+        self.where = placement(cfg.device)
         torch.manual_seed(cfg.seed)
         if cfg.threads:
             torch.set_num_threads(cfg.threads)
@@ -196,13 +196,13 @@ class Trainer:
 
         if not self.where.is_main:
             return
-
         self.out.mkdir(parents=True, exist_ok=True)
         with atomic_path(self.out / "weights.safetensors") as tmp:
             save_file(self.weights(), str(tmp))
         state = {"step": self.step, "config": asdict(self.cfg)}
         with atomic_path(self.out / "state.json") as tmp:
             tmp.write_text(json.dumps(state, indent=1))
+        plot_history(self.cfg.history, self.out / "training_curve.png")
 
     def resume(self) -> bool:
         state_path = self.out / "state.json"
@@ -235,11 +235,12 @@ class Trainer:
 
     def _latent_box(self) -> tuple[Tensor, Tensor]:
         """The encoded pool's bounding box enlarged by 10 %, fixed when phase 2 starts."""
+        from .validity import enlarged  # validity imports fit, which imports this module
+
         if self.box is None:
             with torch.no_grad():
                 pool_z = self.encoder(self.pool.to(self.where.device))
-            lo, hi = pool_z.min(0).values, pool_z.max(0).values
-            self.box = ((lo + hi) / 2 - 0.55 * (hi - lo), (lo + hi) / 2 + 0.55 * (hi - lo))
+            self.box = enlarged((pool_z.min(0).values, pool_z.max(0).values), 1.1)
         return self.box
 
     def _sampler_step(self) -> float:
@@ -279,8 +280,6 @@ class Trainer:
                                         "seconds": time.perf_counter() - start})
                     losses = []
                     self.save()
-                    if self.where.is_main:
-                        plot_history(cfg.history, self.out / "training_curve.png")
 
 
 def plot_history(history: list[dict], path: Path) -> None:

@@ -21,6 +21,11 @@ class NeuralModel:
     digest: str  # sha256 of the weights file: which decoder a fitted material belongs to
 
 
+def digest(folder: Path = SHIPPED) -> str:
+    """sha256 of a run's weights file: names the decoder without building the networks."""
+    return hashlib.sha256((folder / "weights.safetensors").read_bytes()).hexdigest()
+
+
 def load(folder: Path = SHIPPED) -> NeuralModel:
     """The networks of a training run folder (weights.safetensors + state.json), frozen."""
     weights, state = folder / "weights.safetensors", folder / "state.json"
@@ -33,5 +38,4 @@ def load(folder: Path = SHIPPED) -> NeuralModel:
     for name, net in nets.items():
         net.load_state_dict({k[len(name) + 1:]: v for k, v in tensors.items() if k.startswith(name + ".")})
         net.eval().requires_grad_(False)
-    digest = hashlib.sha256(weights.read_bytes()).hexdigest()
-    return NeuralModel(nets["encoder"], nets["decoder"], nets["sampler"], digest)
+    return NeuralModel(nets["encoder"], nets["decoder"], nets["sampler"], digest(folder))
