@@ -111,18 +111,24 @@ def test_furnace_repair_scales_only_what_fails() -> None:
     # third at both (the tighter bound wins), the second never.
     check = fit.Furnace(albedos=torch.tensor([[1.2, 0.8], [0.9, 0.95], [1.1, 1.05]]),
                         std_errors=torch.full((3, 2), 0.01),
-                        transmissions=torch.tensor([[0.5, 0.4], [0.3, 0.3], [0.6, 0.9]]))
+                        transmissions=torch.tensor([[0.5, 0.4], [0.3, 0.3], [0.6, 0.9]]),
+                        quadrature=torch.tensor([[1.0, 0.8], [0.9, 0.95], [1.1, 1.04]]))
     assert check.failing.tolist() == [True, False, True]
     assert torch.allclose(check.albedo, torch.tensor([1.2, 0.95, 1.1]))
     exact = torch.tensor([0.5 / 0.73, 1.0, min(0.4 / 0.53, 0.1 / 0.18)])  # F at its 3-sigma bound
     scale = check.energy_scale()
     assert ((exact - fit.SCALE_STEP < scale) & (scale <= exact)).all()  # rounded down to the grid
     assert torch.equal(scale, torch.round(scale / fit.SCALE_STEP) * fit.SCALE_STEP)
-    noisy = fit.Furnace(check.albedos * (1 + 1e-6), check.std_errors, check.transmissions)
+    noisy = fit.Furnace(check.albedos * (1 + 1e-6), check.std_errors, check.transmissions, check.quadrature)
     assert torch.equal(noisy.energy_scale(), scale)  # float noise does not reach the written map
     upper = check.albedos + 3 * check.std_errors - check.transmissions
     repaired = check.energy_scale()[:, None] * upper + check.transmissions
     assert (repaired <= 1.0 + 1e-6).all()
+    # the quadrature alone can fail a latent that Monte Carlo passes (a lobe its samples missed)
+    narrow = fit.Furnace(albedos=torch.tensor([[0.5, 0.6]]), std_errors=torch.full((1, 2), 0.01),
+                         transmissions=torch.tensor([[0.2, 0.2]]), quadrature=torch.tensor([[2.6, 0.6]]))
+    assert narrow.failing.tolist() == [True] and float(narrow.albedo[0]) == pytest.approx(2.6)
+    assert float(narrow.energy_scale()[0]) == pytest.approx(0.8 / 2.4, abs=fit.SCALE_STEP)
 
 
 def test_furnace_recheck_of_repaired_latents_passes(tiny_weights: Path) -> None:

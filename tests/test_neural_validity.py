@@ -5,6 +5,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 import torch
 
 from tests.test_neural_fit import tiny_weights  # noqa: F401  (fixture)
@@ -24,6 +25,8 @@ def test_furnace_estimates_a_known_albedo(tiny_weights: Path) -> None:  # noqa: 
     check = fit.furnace(model, torch.rand(4, 6) * 2 - 1, n=4096)
     err = (check.albedos - 0.8).abs()
     assert (err < 4 * check.std_errors + 1e-3).all(), check.albedos
+    # this f cos jumps to 0 at the horizon, which cuts through quadrature cells: 2.5 % (real f cos fades to 0 there)
+    assert ((check.quadrature - 0.8).abs() < 0.025 * 0.8).all(), check.quadrature
     assert not check.failing.any()
     assert check.transmissions.max() < 1e-6  # T ~ sigmoid(-20)
 
@@ -38,6 +41,17 @@ def test_furnace_flags_and_repairs_energy_gain(tiny_weights: Path) -> None:  # n
     assert not fit.furnace(model, z, n=2048, seed=9, energy_scale=scale).failing.any()
     guarded = fit.guard(model, z)
     assert (guarded <= 1 / 1.5).all() and not fit.furnace(model, z, n=2048, seed=11, energy_scale=guarded).failing.any()
+
+
+def test_half_vector_grid_resolves_a_near_mirror_lobe() -> None:
+    # A GGX distribution integrates to 1 over projected half vectors; alpha 1e-3 is a
+    # 0.06 degree lobe that a uniform grid of the same size would miss entirely.
+    h, d_omega = fit.half_vector_grid()
+    cos = h[:, 2].double()
+    for alpha in (1e-3, 1e-2, 0.3, 1.0):
+        a2 = alpha * alpha
+        ggx = a2 / (math.pi * (cos * cos * (a2 - 1) + 1) ** 2)
+        assert float((ggx * cos * d_omega.double()).sum()) == pytest.approx(1.0, abs=0.025), alpha
 
 
 def test_box_and_perturbed_latents_decode_finite_non_negative_and_guarded(tiny_weights: Path) -> None:  # noqa: F811
