@@ -1,0 +1,106 @@
+"""Directional albedo of fitted neural materials against the analytic model, by view angle.
+
+FLIP on the preview ball mixes every error into one number; this bench isolates the
+energy: for fit_flip's materials (the enhancement rules on random PBR inputs, fitted
+the same way), the albedo of f_neu (luminance) and of the analytic part it stands for
+(``LayeredBsdf.eval_neural_part``), both integrated with the furnace's deterministic
+half-vector quadrature, at view cosines from 1 down to 0.05. A ratio below 1 is a
+material rendered too dark at that angle, above 1 too bright (or gaining energy).
+
+    python bench/albedo_agreement.py [--per-type N] [--seed S] [--out FILE.json]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(REPO), str(REPO / "bench")]
+
+from agreement_cases import cases  # noqa: E402
+from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors  # noqa: E402
+from torch_models.neural import weights  # noqa: E402
+from torch_models.neural.fit import fit_latents, half_vector_nodes  # noqa: E402
+
+VIEW_COSINES = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2, 0.15, 0.1, 0.05)
+
+
+def albedos(model: weights.NeuralModel, vectors: np.ndarray, z: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
+    """(K, A) luminance albedo of the analytic neural part and of f_neu at ``VIEW_COSINES``."""
+    analytic, neural = np.zeros((2, len(vectors), len(VIEW_COSINES)))
+    with torch.no_grad():
+        for a, mu in enumerate(VIEW_COSINES):
+            wi, wo, weight = half_vector_nodes(mu)
+            m = len(wo)
+            wi_m = wi.expand(m, 3)
+            for k, vector in enumerate(vectors):
+                bsdf = LayeredBsdf(params_from_vectors(torch.as_tensor(vector)[None].expand(m, -1)), torch.zeros(m, 3))
+                analytic[k, a] = float((luminance(bsdf.eval_neural_part(wi_m, wo))[:, 0] * weight).sum())
+                f, _, _ = model.decoder(z[k:k + 1].expand(m, -1), wi_m, wo)
+                neural[k, a] = float((luminance(f)[:, 0] * weight).sum())
+    return analytic, neural
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--per-type", type=int, default=10)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--steps", type=int, default=400, help="fit steps, as fit_flip")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "albedo_agreement.json")
+    args = parser.parse_args()
+
+    start = time.perf_counter()
+    model = weights.load()
+    drawn = cases(args.seed, args.per_type, 0)
+    vectors = np.stack([c.vector() for c in drawn])
+    z = fit_latents(model, vectors, args.steps, seed=args.seed)
+    analytic, neural = albedos(model, vectors, z)
+    ratio = neural / np.maximum(analytic, 1e-6)
+    types = np.array([int(c.name[4]) for c in drawn])
+    summary = {str(mu): {"median_ratio": float(np.median(ratio[:, a])),
+                         "p10": float(np.percentile(ratio[:, a], 10)), "p90": float(np.percentile(ratio[:, a], 90)),
+                         "median_ratio_per_type": [float(np.median(ratio[types == t, a])) for t in range(6)]}
+               for a, mu in enumerate(VIEW_COSINES)}
+    report = {"per_type": args.per_type, "seed": args.seed, "steps": args.steps, "decoder_sha256": model.digest,
+              "view_cosines": VIEW_COSINES, "summary": summary, "wall_seconds": time.perf_counter() - start,
+              "materials": [{"name": c.name, "analytic": analytic[k].tolist(), "neural": neural[k].tolist()}
+                            for k, c in enumerate(drawn)]}
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(report, indent=1))
+    chart(ratio, types, args.out.with_suffix(".png"), args.seed)
+    for mu, s in summary.items():
+        print(f"cos {mu:>5}: neural / analytic albedo median {s['median_ratio']:.3f} "
+              f"(10-90 %: {s['p10']:.3f}-{s['p90']:.3f})")
+
+
+def chart(ratio: np.ndarray, types: np.ndarray, path: Path, seed: int) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    mu = np.array(VIEW_COSINES)
+    ax.fill_between(mu, np.percentile(ratio, 10, 0), np.percentile(ratio, 90, 0), color="gray", alpha=0.25,
+                    label="all materials, 10-90 %")
+    for t in range(6):
+        ax.plot(mu, np.median(ratio[types == t], 0), "o-", ms=3, label=f"Type {t} median")
+    ax.axhline(1.0, color="black", lw=0.8)
+    ax.set_xscale("log")
+    ax.set_xticks([0.05, 0.1, 0.2, 0.5, 1.0], ["0.05", "0.1", "0.2", "0.5", "1"])
+    ax.set_xlabel("cos(theta_i), view angle (grazing on the left)")
+    ax.set_ylabel("albedo of f_neu / analytic")
+    ax.set_title(f"Directional albedo, fitted neural vs analytic (seed {seed})")
+    ax.legend(fontsize=7, ncol=2)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+if __name__ == "__main__":
+    main()
