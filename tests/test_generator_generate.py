@@ -25,6 +25,7 @@ def test_prompt_keywords_name_the_enhancement_type():
     assert prompt_type("velvet", metallic=True)[0] == 1  # no fuzz on metals, as the enhancer
     type_, warnings = prompt_type("something shiny")
     assert type_ == 0 and "no enhancement keyword" in warnings[0]
+    assert prompt_type("white silver metal with moderate haze") == (0, [])  # haze is every type's: understood
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +96,8 @@ def test_a_baked_metal_keeps_fuzz_off_and_its_base_colour(checkpoint, tmp_path):
     baked = tmp_path / "baked"
     baked.mkdir()
     (baked / "params.json").write_text(json.dumps(
-        {"textures": {}, "constants": {"base_color": [0.9, 0.2, 0.1], "metalness": 1.0}}))
+        {"textures": {}, "constants": {"base_color": [0.9, 0.2, 0.1], "metalness": 1.0, "alpha_core": 0.3 ** 3},
+         "settings": {"p": 3.0}}))
     out = tmp_path / "out"
     assert main(["generate", str(GLB), "--prompt", "soft velvet", "--out", str(out), "--views", "2", "--steps", "1",
                  "--texture-size", "16", "--checkpoint", str(checkpoint), "--material", str(baked),
@@ -114,3 +116,38 @@ def test_a_generator_trained_for_another_decoder_is_flagged(tmp_path: Path) -> N
     assert warning is not None and "aaaaaaaaaaaa" in warning and "bbbbbbbbbbbb" in warning
     (tmp_path / "state.json").write_text(json.dumps({}))
     assert decoder_mismatch(tmp_path, "b" * 64) is None  # older runs recorded nothing
+
+
+def test_roughness_and_metalness_come_from_the_file_or_the_bake(tmp_path):
+    """glTF factors become the generator's PBR condition; a bake gives roughness back from alpha_core = r^p;
+    formats without PBR leave it unknown."""
+    import trimesh
+    from trimesh.visual.material import PBRMaterial
+
+    from torch_models.generator.mesh_input import load_mesh, stack_maps, use_baked_material
+
+    box = trimesh.creation.box()
+    box.visual = trimesh.visual.TextureVisuals(uv=np.random.default_rng(0).random((len(box.vertices), 2)),
+                                               material=PBRMaterial(roughnessFactor=0.3, metallicFactor=0.9))
+    glb = tmp_path / "box.glb"
+    box.export(glb)
+    inp = load_mesh(glb)
+    assert np.allclose(inp.roughness_metalness.reshape(-1, 2), [0.3, 0.9], atol=1e-3) and inp.metallic
+    obj = tmp_path / "box.obj"
+    trimesh.creation.box().export(obj)
+    bare = load_mesh(obj)
+    assert bare.roughness_metalness is None and not bare.metallic
+    assert any("roughness" in n for n in bare.notes)
+
+    baked = tmp_path / "baked"
+    baked.mkdir()
+    (baked / "params.json").write_text(json.dumps(
+        {"textures": {}, "constants": {"base_color": [0.5, 0.5, 0.5], "metalness": 0.0, "alpha_core": 0.4 ** 2.5},
+         "settings": {"p": 2.5}}))
+    use_baked_material(bare, baked)
+    assert np.allclose(bare.roughness_metalness.reshape(-1, 2), [0.4, 0.0], atol=1e-5)
+
+    rough = np.arange(16, dtype=np.float32).reshape(4, 4, 1)
+    both = stack_maps(rough, np.full((2, 2, 1), 0.5, np.float32))
+    assert both.shape == (4, 4, 2) and np.array_equal(both[..., 0], rough[..., 0]) and np.all(both[..., 1] == 0.5)
+    assert stack_maps(np.full((1, 1, 1), 0.2, np.float32), rough).shape == (4, 4, 2)

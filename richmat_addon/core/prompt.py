@@ -13,6 +13,7 @@ from __future__ import annotations
 import re
 
 KEYWORDS: dict[str, tuple[str, ...]] = {
+    "haze": ("haze", "hazy"),  # every type has haze: naming it alone is Type 0, and is understood
     "dust": ("dust", "dusty", "dirt", "dirty", "grime", "grimy"),
     "coat": ("clearcoat", "clear coat", "coat", "coated", "lacquer", "lacquered", "varnish", "varnished", "glaze",
              "glazed"),
