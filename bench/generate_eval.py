@@ -86,7 +86,7 @@ def held_out(index: int, cfg: GeneratorTrainConfig) -> HeldOut:
     material = enhance(asset.pbr, type_, corpus.enhancement_seed(seed, index), ParamMap(asset.world_normals),
                        ParamMap(asset.world_positions))
     prompt = corpus.caption_for(asset.shape, material, metallic)
-    return HeldOut(asset, material, prompt, type_, MeshInput(asset.mesh, asset.pbr.base_color.value, True))
+    return HeldOut(asset, material, prompt, type_, MeshInput.from_pbr(asset.mesh, asset.pbr))
 
 
 class Retrieval:
@@ -100,7 +100,7 @@ class Retrieval:
         self.embeddings = torch.stack([s.text for s in samples])
         means = []
         for s in samples:
-            cover = s.conditions[:, 9:10] > 0
+            cover = s.conditions[:, -1:] > 0  # the coverage channel
             means.append((s.target * cover).sum((0, 2, 3)) / cover.sum().clamp(min=1))
         self.latents = torch.stack(means).numpy()
 

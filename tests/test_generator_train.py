@@ -7,7 +7,7 @@ from PIL import Image
 from safetensors.torch import load_file
 
 from torch_models.cli import main
-from torch_models.generator import corpus
+from torch_models.generator import corpus, procedural
 from torch_models.generator.train import GeneratorTrainConfig, learning_rate, load_corpus
 
 torch.set_num_threads(1)
@@ -33,14 +33,21 @@ def test_corpus_files_hold_the_documented_tensors(tiny_config):
     files = sorted((tiny_config.parent / "corpus").glob("*.safetensors"))
     assert len(files) == 3
     s = corpus.Sample.load(files[0])
-    assert s.target.shape == (2, 6, 16, 16) and s.conditions.shape == (2, 10, 16, 16)
+    assert s.target.shape == (2, 6, 16, 16) and s.conditions.shape == (2, 13, 16, 16)
     assert s.text.shape == (384,) and 0 <= s.type <= 5 and s.caption.startswith("a ")
-    cover = s.conditions[:, 9] > 0
+    cover = s.conditions[:, -1] > 0
     assert 0 < cover.float().mean() < 1
     assert float(s.target.abs().amax(1)[~cover].max()) == 0.0  # background is empty
     assert float(s.target.abs().amax(1)[cover].min()) > 0.0
     normals = s.conditions[:, 0:3].permute(0, 2, 3, 1)[cover]
     assert torch.allclose(normals.norm(dim=-1), torch.ones(len(normals)), atol=1e-2)
+    # roughness, metalness and their known flag: the object's own PBR values inside, 0 outside
+    pbr = procedural.make_asset(0, 16, 0).pbr
+    roughness, metalness, known = (s.conditions[:, c][cover] for c in (9, 10, 11))
+    assert torch.equal(known, torch.ones_like(known)) and float(s.conditions[:, 9:12][~cover[:, None].expand(-1, 3, -1, -1)].abs().max()) == 0
+    assert float(roughness.min()) >= float(pbr.roughness.value.min()) - 1e-3
+    assert float(roughness.max()) <= float(pbr.roughness.value.max()) + 1e-3
+    assert float(metalness.min()) >= float(pbr.metalness.value.min()) - 1e-3
 
 
 def test_learning_rate_warms_up_then_decays(tiny_config):

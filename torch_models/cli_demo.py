@@ -117,7 +117,7 @@ def generate_from_prompts(out: Path, seed: int) -> None:
     model, cfg = gen.load_generator()
     index = next(i for i in range(1000) if corpus.is_held_out(f"proc-{cfg.corpus.seed}-{i:05d}"))
     asset = procedural.make_asset(index, cfg.corpus.texture_size, cfg.corpus.seed)
-    inp = MeshInput(asset.mesh, asset.pbr.base_color.value, True)
+    inp = MeshInput.from_pbr(asset.mesh, asset.pbr)
     subject = f"a {asset.shape}: {asset.pbr.name} {'metal' if asset.family == 'metal' else 'material'}"
     rows, records = [], []
     for ending in DEMO_PROMPT_ENDINGS:

@@ -1,8 +1,9 @@
 """The generator's training corpus: one safetensors file per object.
 
 A sample is an object seen from V orbit views at the working resolution:
-``target`` (V, 6, H, W) latent channels, ``conditions`` (V, 10, H, W) = world
-normal, world position, base colour, coverage; ``text`` (384,) the caption's
+``target`` (V, 6, H, W) latent channels, ``conditions`` (V, 13, H, W) = world
+normal, world position, base colour, roughness, metalness, whether those two are
+known, coverage (``views.CONDITION_LAYOUT``); ``text`` (384,) the caption's
 MiniLM embedding; ``type`` the enhancement type (0-5). The caption and asset id
 ride in the file's metadata.
 
@@ -35,6 +36,7 @@ from richmat_addon.core.enhance import enhance, is_metallic
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
 from richmat_addon.core.schema import PARAMS
 from . import procedural, text
+from .mesh_input import roughness_metalness
 from .views import Cameras, IntrinsicViews, orbit_cameras, render_intrinsics
 
 HELD_OUT_FRACTION = 0.1
@@ -51,7 +53,7 @@ class Sample:
     caption: str
     type: int
     target: Tensor  # (V, 6, H, W)
-    conditions: Tensor  # (V, 10, H, W)
+    conditions: Tensor  # (V, CONDITION_CHANNELS, H, W)
     text: Tensor  # (384,)
 
     def save(self, path: Path) -> None:
@@ -123,7 +125,8 @@ def from_procedural(index: int, cameras: Cameras, texture_size: int = 64, seed: 
     material = enhance(asset.pbr, type_, enhancement_seed(seed, index), ParamMap(asset.world_normals),
                        ParamMap(asset.world_positions))
     latents = latent_texture(material, (texture_size, texture_size), fit_steps)
-    views = render_intrinsics(asset.mesh, cameras, asset.pbr.base_color.value, latents, supersample)
+    views = render_intrinsics(asset.mesh, cameras, asset.pbr.base_color.value, latents, supersample,
+                              roughness_metalness(asset.pbr))
     cap = caption_for(asset.shape, material, metallic)
     return sample_from_views(asset.asset_id, cap, type_, views)
 
@@ -132,10 +135,8 @@ def sample_from_views(asset_id: str, caption: str, type_: int, views: IntrinsicV
     """A sample from rendered views; pixels count as covered from half coverage on, as in ``from_batch``."""
     assert views.latents is not None
     inside = (views.coverage > 0.5).float()
-    cond = views.conditions()
-    cond = torch.cat([cond[:, :9] * inside[:, None], inside[:, None]], 1)
     target = views.latents.permute(0, 3, 1, 2) * inside[:, None]
-    return Sample(asset_id, caption, type_, target.contiguous(), cond.contiguous(), text.embed([caption])[0])
+    return Sample(asset_id, caption, type_, target.contiguous(), views.conditions(), text.embed([caption])[0])
 
 
 def read_batch_passes(exr: Path) -> dict[str, np.ndarray]:
@@ -156,25 +157,25 @@ def read_batch_passes(exr: Path) -> dict[str, np.ndarray]:
 
 
 def from_batch(folder: Path) -> Sample:
-    """A sample from one finished batch asset folder (passes/, caption.txt, manifest.json)."""
+    """A sample from one finished batch asset folder (passes/, caption.txt, manifest.json).
+
+    batch renders no roughness or metalness pass, so these samples say the two are unknown."""
     manifest = json.loads((folder / "manifest.json").read_text())
     frames = []
     for exr in sorted((folder / "passes").glob("*.exr")):
         layers = read_batch_passes(exr)
         cover = layers["coverage"][..., :1]
         # Cycles averages its AA samples with the black background: undo that premultiplication
-        inside = cover > 0.5
-        unmix = np.where(inside, 1.0 / np.maximum(cover, 1e-6), 0.0)
+        unmix = np.where(cover > 0.5, 1.0 / np.maximum(cover, 1e-6), 0.0)
         normal = layers["Normal"][..., :3] * unmix
         normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
-        frames.append({"cond": np.concatenate([normal, layers["Position"][..., :3] * unmix,
-                                               layers["basecolor"][..., :3] * unmix, inside.astype(np.float32)], -1),
-                       "target": np.concatenate([layers["latent_a"][..., :3], layers["latent_b"][..., :3]], -1)
-                       * unmix})
-    cond = torch.from_numpy(np.stack([f["cond"] for f in frames])).permute(0, 3, 1, 2).contiguous()
-    target = torch.from_numpy(np.stack([f["target"] for f in frames])).permute(0, 3, 1, 2).contiguous()
+        frames.append([normal, layers["Position"][..., :3] * unmix, layers["basecolor"][..., :3] * unmix,
+                       cover[..., 0], np.concatenate([layers["latent_a"][..., :3], layers["latent_b"][..., :3]], -1)
+                       * unmix])
+    normal, position, base, cover, latents = (torch.from_numpy(np.stack(m)).float() for m in zip(*frames))
+    views = IntrinsicViews(normal, position, base, cover, torch.zeros((*cover.shape, 2)), latents)
     cap = (folder / "caption.txt").read_text().strip()
-    return Sample(manifest["asset_id"], cap, int(manifest["enhancement_type"]), target, cond, text.embed([cap])[0])
+    return sample_from_views(manifest["asset_id"], cap, int(manifest["enhancement_type"]), views)
 
 
 def build_procedural(out: Path, count: int, views: int, resolution: int, seed: int = 0,

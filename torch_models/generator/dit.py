@@ -2,7 +2,8 @@
 
 Every view of the object is cut into p x p patches; one token per patch carries
 the noisy 6 latent channels and the conditions of those pixels (world normal 3,
-world position 3, base colour 3, coverage 1), so the geometry sits in every
+world position 3, base colour 3, roughness, metalness and whether they are known,
+coverage 1: ``views.CONDITION_LAYOUT``), so the geometry sits in every
 token, as the paper concatenates its condition latents channel-wise. Attention
 is full across all views x patches: a texel seen in two views can agree with
 itself. Tokens get a learned in-view patch position; views need no index because
@@ -21,9 +22,9 @@ import torch
 from torch import Tensor, nn
 
 from . import edm
+from .views import CONDITION_CHANNELS, PBR_CHANNELS
 
 LATENT_CHANNELS = 6
-CONDITION_CHANNELS = 10  # normal 3, position 3, base colour 3, coverage 1
 TYPES = 6
 NULL_TYPE = TYPES
 
@@ -108,7 +109,7 @@ class MultiViewDit(nn.Module):
         return t.reshape(b, v, LATENT_CHANNELS, g * p, g * p)
 
     def forward(self, x: Tensor, c_noise: Tensor, conditions: Tensor, text: Tensor, type_: Tensor) -> Tensor:
-        """x (B, V, 6, H, W) already scaled by c_in; conditions (B, V, 10, H, W); text (B, text_dim); type_ (B,)."""
+        """x (B, V, 6, H, W) already scaled by c_in; conditions (B, V, CONDITION_CHANNELS, H, W); text (B, text_dim); type_ (B,)."""
         v = x.shape[1]
         tokens = self.embed(self._patchify(torch.cat([x, conditions], 2)))
         tokens = tokens + self.position.repeat(v, 1)
@@ -121,7 +122,7 @@ class MultiViewDit(nn.Module):
 
 @dataclass
 class Conditions:
-    """What a generation is conditioned on, batched: views (B, V, 10, H, W), text (B, 384), type (B,)."""
+    """What a generation is conditioned on, batched: views (B, V, CONDITION_CHANNELS, H, W), text (B, 384), type (B,)."""
 
     views: Tensor
     text: Tensor
@@ -134,6 +135,13 @@ class Conditions:
     def drop(self, keep: Tensor) -> "Conditions":
         """Per-sample prompt dropout for classifier-free guidance training; keep (B,) bool."""
         return Conditions(self.views, self.text * keep[:, None], torch.where(keep, self.type, NULL_TYPE))
+
+    def drop_pbr(self, keep: Tensor) -> "Conditions":
+        """Per-sample dropout of the roughness and metalness maps (and their known flag), so one model
+        serves meshes that come with them and meshes that do not; keep (B,) bool."""
+        views = self.views.clone()
+        views[:, :, PBR_CHANNELS] *= keep[:, None, None, None, None].to(views.dtype)
+        return Conditions(views, self.text, self.type)
 
 
 class LatentGenerator(nn.Module):
@@ -150,15 +158,18 @@ class LatentGenerator(nn.Module):
         f = self.net(s.c_in * x, s.c_noise.flatten(), cond.views, cond.text, cond.type)
         return (s.c_skip * x + s.c_out * f) * cond.views[:, :, -1:]
 
-    def forward(self, x0: Tensor, cond: Conditions, generator: torch.Generator, drop_prob: float = 0.1) -> Tensor:
+    def forward(self, x0: Tensor, cond: Conditions, generator: torch.Generator, drop_prob: float = 0.1,
+                pbr_drop_prob: float = 0.0) -> Tensor:
         """The training loss (forward, so DistributedDataParallel sees it): a random noise level
-        per sample, the prompt dropped with ``drop_prob``. Randomness comes from the CPU
-        ``generator``, so a run is reproducible on any device."""
+        per sample, the prompt dropped with ``drop_prob``, the roughness and metalness maps with
+        ``pbr_drop_prob``. Randomness comes from the CPU ``generator``, so a run is reproducible
+        on any device."""
         b, dev = len(x0), x0.device
         sigma = edm.sample_sigma(b, generator).to(dev)
         noise = torch.randn(x0.shape, generator=generator).to(dev)
         keep = (torch.rand(b, generator=generator) >= drop_prob).to(dev)
-        x0_pred = self.denoise(x0 + sigma.reshape(-1, 1, 1, 1, 1) * noise, sigma, cond.drop(keep))
+        keep_pbr = (torch.rand(b, generator=generator) >= pbr_drop_prob).to(dev)
+        x0_pred = self.denoise(x0 + sigma.reshape(-1, 1, 1, 1, 1) * noise, sigma, cond.drop(keep).drop_pbr(keep_pbr))
         return edm.weighted_loss(x0, x0_pred, sigma, self.logvar(sigma), cond.views[:, :, -1:])
 
     @torch.no_grad()

@@ -90,11 +90,9 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     type_, warnings = prompt_type(prompt, metallic=inp.metallic)
     res = cfg.model.size
     cams = orbit_cameras(views, res)
-    cond_views = render_intrinsics(inp.mesh, cams, inp.base_color, supersample=cfg.corpus.supersample)
-    inside = (cond_views.coverage > 0.5).float()
-    c = cond_views.conditions()
-    c = torch.cat([c[:, :9] * inside[:, None], inside[:, None]], 1)
-    cond = Conditions(c[None], text.embed([prompt]), torch.tensor([type_]))
+    cond_views = render_intrinsics(inp.mesh, cams, inp.base_color, supersample=cfg.corpus.supersample,
+                                   roughness_metalness=inp.roughness_metalness)
+    cond = Conditions(cond_views.conditions()[None], text.embed([prompt]), torch.tensor([type_]))
     times["condition_views"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     generated = model.sample(cond, steps, seed, guidance, progress)[0].clamp(-1.0, 1.0)  # the encoder's latent box

@@ -1,11 +1,14 @@
-"""A user's mesh file as the generator needs it: Z up, in the unit cube, with UVs and a base colour.
+"""A user's mesh file as the generator needs it: Z up, in the unit cube, with UVs, a base colour and,
+where the file has them, roughness and metalness.
 
 trimesh reads GLB/glTF/OBJ/PLY/STL. These formats are Y up, and Blender (hence
 batch) turns them Z up on import: (x, y, z) -> (x, -z, y), done here too. The
 mesh is centred and scaled into [-0.5, 0.5]^3 as batch's prepare stage does. A
 single textured part keeps its UVs and base colour texture; otherwise the parts
 are merged, unwrapped with xatlas and given the mean of their base colour
-factors (noted).
+factors (noted). A glTF material's roughness and metalness (factors times the
+metallicRoughness texture's G and B) condition the generator too; formats without
+them (OBJ, PLY) leave them unknown, which the generator was trained to handle.
 """
 from __future__ import annotations
 
@@ -14,7 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
+from richmat_addon.core.enhance import METALLIC_THRESHOLD, is_metallic
 from richmat_addon.core.gltf_materials import srgb_to_linear
+from richmat_addon.core.maps import PbrInputs
 
 from .views import Mesh
 
@@ -25,7 +30,53 @@ class MeshInput:
     base_color: np.ndarray  # (H, W, 3) linear, or (1, 1, 3) for a constant
     had_uvs: bool
     notes: list[str] = field(default_factory=list)
-    metallic: bool = False  # known from a baked material (use_baked_material); mesh files do not say
+    metallic: bool = False  # whether the enhancer's metal rules apply (known with the PBR maps)
+    roughness_metalness: np.ndarray | None = None  # (H, W, 2) or (1, 1, 2); None where unknown
+
+    @classmethod
+    def from_pbr(cls, mesh: Mesh, pbr: PbrInputs, had_uvs: bool = True) -> "MeshInput":
+        """A mesh whose full PBR material is known (procedural objects, the demo)."""
+        return cls(mesh, pbr.base_color.value.reshape(_image_shape(pbr.base_color.value)), had_uvs,
+                   metallic=is_metallic(pbr), roughness_metalness=roughness_metalness(pbr))
+
+
+def _image_shape(value: np.ndarray) -> tuple[int, int, int]:
+    """A parameter map's value as an (H, W, C) image; constants are 1 x 1."""
+    return value.shape if value.ndim == 3 else (1, 1, value.shape[-1])
+
+
+def stack_maps(roughness: np.ndarray, metalness: np.ndarray) -> np.ndarray:
+    """(H, W, 2) from two single-channel images (H, W, 1) or (1, 1, 1); a smaller texture is
+    resampled (nearest) to the larger one's size."""
+    shapes = [m.shape[:2] for m in (roughness, metalness)]
+    h, w = max(shapes, key=lambda s: s[0] * s[1])
+
+    def resize(m: np.ndarray) -> np.ndarray:
+        if m.shape[:2] in ((h, w), (1, 1)):
+            return np.broadcast_to(m, (h, w, 1))
+        rows = np.arange(h) * m.shape[0] // h
+        cols = np.arange(w) * m.shape[1] // w
+        return m[rows][:, cols]
+
+    return np.concatenate([resize(roughness), resize(metalness)], -1).astype(np.float32)
+
+
+def roughness_metalness(pbr: PbrInputs) -> np.ndarray:
+    """The generator's roughness and metalness condition of a PBR material."""
+    return stack_maps(*(m.value.reshape(_image_shape(m.value))[..., :1] for m in (pbr.roughness, pbr.metalness)))
+
+
+def _roughness_metalness(part) -> np.ndarray | None:  # part: trimesh.Trimesh
+    """A glTF part's roughness and metalness (H, W, 2) or (1, 1, 2); None for materials without them."""
+    material = getattr(part.visual, "material", None)
+    if material is None or not hasattr(material, "metallicRoughnessTexture"):
+        return None  # not a PBR (glTF) material
+    factors = [1.0 if f is None else float(f) for f in (material.roughnessFactor, material.metallicFactor)]
+    image = material.metallicRoughnessTexture
+    if image is None:
+        return np.asarray(factors, np.float32).reshape(1, 1, 2)
+    texels = np.asarray(image.convert("RGB"), np.float32) / 255.0  # linear data, not sRGB
+    return (texels[..., 1:3] * np.asarray(factors, np.float32)).astype(np.float32)
 
 
 def _base_colour(part) -> tuple[np.ndarray, np.ndarray | None]:  # part: trimesh.Trimesh
@@ -78,18 +129,23 @@ def load_mesh(path: Path) -> MeshInput:
         factor = np.mean([_base_colour(p)[0] for p in parts], 0)
         notes.append(f"{len(parts)} parts merged; base colour = the mean of their base colour factors")
     base = (factor[None, None] * texture if texture is not None and had_uvs else factor[None, None])
-    return MeshInput(mesh, base.astype(np.float32), had_uvs, notes)
+    pbr = _roughness_metalness(parts[0]) if len(parts) == 1 else None
+    if pbr is not None and not had_uvs:
+        pbr = pbr.reshape(-1, 2).mean(0).reshape(1, 1, 2)  # its texture no longer fits the new UVs
+    if pbr is None:
+        notes.append("no roughness or metalness in the file: the generator goes by the prompt alone")
+    metallic = pbr is not None and float(pbr[..., 1].mean()) > METALLIC_THRESHOLD
+    return MeshInput(mesh, base.astype(np.float32), had_uvs, notes, metallic, pbr)
 
 
 def use_baked_material(inp: MeshInput, folder: Path) -> None:
-    """Take the base colour and metalness of a baked enhanced-material folder (params.json).
+    """Take the base colour, roughness and metalness of a baked enhanced-material folder (params.json).
 
     The add-on bakes the material it previews; generating against that same base
     colour keeps the latents and the preview's diffuse base in agreement, and its
     metalness lets the prompt's type follow the enhancer's rule for metals."""
     import json
 
-    from richmat_addon.core.enhance import METALLIC_THRESHOLD
     from ..neural.fit import read_exr
 
     params_file = folder / "params.json"
@@ -98,9 +154,16 @@ def use_baked_material(inp: MeshInput, folder: Path) -> None:
     params = json.loads(params_file.read_text())
 
     def value(name: str) -> np.ndarray:
-        if name in params["textures"]:
+        if name in params.get("textures", {}):
             return read_exr(folder / params["textures"][name])
-        return np.asarray(params["constants"][name], np.float32).reshape(1, 1, -1)
+        if name in params.get("constants", {}):
+            return np.asarray(params["constants"][name], np.float32).reshape(1, 1, -1)
+        raise ValueError(f"{folder}: params.json has no {name}; bake the material again")
 
     inp.base_color = value("base_color")[..., :3]
     inp.metallic = float(value("metalness")[..., 0].mean()) > METALLIC_THRESHOLD
+    exponent = params.get("settings", {}).get("p")
+    if exponent is None:
+        raise ValueError(f"{folder}: params.json has no settings.p (roughness exponent); bake the material again")
+    roughness = value("alpha_core")[..., :1] ** (1.0 / exponent)  # enhance: alpha_core = roughness^p
+    inp.roughness_metalness = stack_maps(roughness, value("metalness")[..., :1])

@@ -45,7 +45,8 @@ class GeneratorTrainConfig:
     lr: float = 3e-4
     lr_final: float = 3e-5
     warmup: int = 200
-    drop_prob: float = 0.1
+    drop_prob: float = 0.1  # prompt dropout, for classifier-free guidance
+    pbr_drop_prob: float = 0.2  # roughness/metalness dropout: meshes without PBR maps get the same model
     checkpoint_every: int = 500
     seed: int = 0
     threads: int = 0  # 0: torch's default
@@ -156,7 +157,7 @@ class GeneratorTrainer:
         cond = Conditions(self.cond[idx], self.text[idx], self.type[idx])
         for group in self.opt.param_groups:
             group["lr"] = learning_rate(cfg, self.step)
-        loss = self.module(self.target[idx], cond, gen, cfg.drop_prob)
+        loss = self.module(self.target[idx], cond, gen, cfg.drop_prob, cfg.pbr_drop_prob)
         self.opt.zero_grad()
         loss.backward()
         torch.nn.utils.clip_grad_norm_(self.model.parameters(), 1.0)

@@ -176,7 +176,8 @@ def sample_texture(texture: np.ndarray, uv: Tensor) -> Tensor:
 
 @dataclass
 class IntrinsicViews:
-    """Per-view maps (V, H, W, C): normal 3, position 3, base colour 3, coverage 1, uv 2, latent 6 (if known)."""
+    """Per-view maps (V, H, W, C): normal 3, position 3, base colour 3, coverage 1, uv 2, latent 6 (if known),
+    roughness and metalness 2 (if known)."""
 
     normals: Tensor
     positions: Tensor
@@ -184,16 +185,33 @@ class IntrinsicViews:
     coverage: Tensor
     uvs: Tensor
     latents: Tensor | None
+    roughness_metalness: Tensor | None = None
 
     def conditions(self) -> Tensor:
-        """The generator's condition channels, (V, 10, H, W)."""
-        return torch.cat([self.normals, self.positions, self.base_color, self.coverage[..., None]],
-                         -1).permute(0, 3, 1, 2).contiguous()
+        """The generator's condition channels (V, CONDITION_CHANNELS, H, W), in ``CONDITION_LAYOUT`` order.
+
+        Pixels below half coverage count as background: their maps are 0 and their
+        coverage channel is 0 (1 inside), as the denoiser's output mask expects."""
+        inside = (self.coverage > 0.5).float()[..., None]
+        if self.roughness_metalness is None:
+            pbr = torch.zeros((*self.coverage.shape, 3))
+        else:
+            pbr = torch.cat([self.roughness_metalness, torch.ones((*self.coverage.shape, 1))], -1)
+        maps = torch.cat([self.normals, self.positions, self.base_color, pbr], -1) * inside
+        return torch.cat([maps, inside], -1).permute(0, 3, 1, 2).contiguous()
+
+
+CONDITION_LAYOUT = (("normal", 3), ("position", 3), ("base_color", 3), ("roughness", 1), ("metalness", 1),
+                    ("pbr_known", 1), ("coverage", 1))
+CONDITION_CHANNELS = sum(c for _, c in CONDITION_LAYOUT)
+PBR_CHANNELS = slice(9, 12)  # roughness, metalness, pbr_known: zeroed together where the maps are unknown
 
 
 def render_intrinsics(mesh: Mesh, cameras: Cameras, base_color: np.ndarray,
-                      latents: np.ndarray | None = None, supersample: int = 1) -> IntrinsicViews:
-    """Normals, positions, base colour (and latents) as seen by each camera; 0 on the background.
+                      latents: np.ndarray | None = None, supersample: int = 1,
+                      roughness_metalness: np.ndarray | None = None) -> IntrinsicViews:
+    """Normals, positions, base colour (and latents, roughness and metalness) as seen by each camera;
+    0 on the background.
 
     With supersampling every map is the mean over the covered subsamples of a pixel
     (not premultiplied by coverage) and coverage is the covered fraction.
@@ -205,12 +223,15 @@ def render_intrinsics(mesh: Mesh, cameras: Cameras, base_color: np.ndarray,
     uv = frags.interpolate(mesh.uvs, mesh.faces)
     maps = [n / n.norm(dim=-1, keepdim=True).clamp(min=1e-12), frags.interpolate(mesh.positions, mesh.faces),
             sample_texture(base_color, uv) * cover, uv]
-    if latents is not None:
-        maps.append(sample_texture(latents, uv) * cover)
+    optional = [t for t in (latents, roughness_metalness) if t is not None]
+    maps += [sample_texture(t, uv) * cover for t in optional]
     if supersample > 1:
         pooled_cover = torch.nn.functional.avg_pool2d(cover.permute(0, 3, 1, 2), supersample)
         maps = [(torch.nn.functional.avg_pool2d(m.permute(0, 3, 1, 2), supersample)
                  / pooled_cover.clamp(min=1e-6)).permute(0, 2, 3, 1) for m in maps]
         cover = pooled_cover.permute(0, 2, 3, 1)
         maps[0] = maps[0] / maps[0].norm(dim=-1, keepdim=True).clamp(min=1e-12)
-    return IntrinsicViews(maps[0], maps[1], maps[2], cover[..., 0], maps[3], maps[4] if latents is not None else None)
+    rest = iter(maps[4:])
+    return IntrinsicViews(maps[0], maps[1], maps[2], cover[..., 0], maps[3],
+                          next(rest) if latents is not None else None,
+                          next(rest) if roughness_metalness is not None else None)
