@@ -7,7 +7,7 @@ the same way), the albedo of f_neu (luminance) and of the analytic part it stand
 half-vector quadrature, at view cosines from 1 down to 0.05. A ratio below 1 is a
 material rendered too dark at that angle, above 1 too bright (or gaining energy).
 
-    python bench/albedo_agreement.py [--per-type N] [--seed S] [--out FILE.json]
+    python bench/albedo_agreement.py [--per-type N] [--seed S] [--out FILE.json] [--weights RUN]
 """
 from __future__ import annotations
 
@@ -53,10 +53,11 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--steps", type=int, default=400, help="fit steps, as fit_flip")
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "albedo_agreement.json")
+    parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
     args = parser.parse_args()
 
     start = time.perf_counter()
-    model = weights.load()
+    model = weights.load(args.weights)
     drawn = cases(args.seed, args.per_type, 0)
     vectors = np.stack([c.vector() for c in drawn])
     z = fit_latents(model, vectors, args.steps, seed=args.seed)
