@@ -140,7 +140,7 @@ def evaluate(obj: HeldOut, model: LatentGenerator, cfg: GeneratorTrainConfig, ar
     t0, c0 = time.perf_counter(), time.process_time()
     result = gen.generate(obj.inp, obj.prompt, model, cfg, args.seed, args.steps, args.views, args.guidance, size)
     seconds, cpu_seconds = time.perf_counter() - t0, time.process_time() - c0
-    named_type, _ = prompt_type(obj.prompt, is_metallic(obj.asset.pbr))
+    named_type, _ = prompt_type(obj.prompt, obj.inp.metallic)
     a = obj.asset
     candidates = {
         "generated": result.latents,

@@ -68,6 +68,12 @@ class Batch:
         return Batch(*(getattr(self, k).to(device) for k in self.__dataclass_fields__))
 
 
+def view_directions(mu: Tensor) -> Tensor:
+    """Local view directions (K, 3) in the xz plane at view cosines mu (K, 1): isotropic
+    materials need no azimuth."""
+    return torch.cat([(1 - mu * mu).clamp(min=0).sqrt(), torch.zeros_like(mu), mu], -1)
+
+
 def cosine_hemisphere(n: int, gen: torch.Generator) -> Tensor:
     u = torch.rand(n, 2, generator=gen)
     r, phi = u[:, 0].sqrt(), 2 * torch.pi * u[:, 1]

@@ -27,7 +27,7 @@ import torch
 from torch import Tensor
 
 from richmat_addon.core.schema import CHANNEL_SLICES, PARAMS
-from .data import cosine_hemisphere, make_batch
+from .data import cosine_hemisphere, make_batch, view_directions
 from .networks import LATENT, normalise_params
 from .train import decoder_loss
 from .weights import NeuralModel
@@ -165,7 +165,7 @@ class Furnace:
 
     def _over(self) -> Tensor:
         """(K, A) angles that gain energy: by quadrature, or by Monte Carlo beyond 3 standard errors."""
-        return (self.quadrature > 1.0 + QUADRATURE_TOLERANCE) | (self.albedos > 1.0 + 3.0 * self.std_errors)
+        return (self.quadrature > 1.0 + QUADRATURE_TOLERANCE) | _significant_gain(self.albedos, self.std_errors)
 
     @property
     def failing(self) -> Tensor:
@@ -223,11 +223,16 @@ def furnace(model: NeuralModel, z: Tensor, n: int = 1024, seed: int = 0,
     """
     scale = torch.ones(len(z)) if energy_scale is None else energy_scale
     albedos, std_errors = _furnace_pass(model, z, n, seed, scale)
-    again = (albedos > 1.0 + 3.0 * std_errors).any(1).nonzero(as_tuple=True)[0]
+    again = _significant_gain(albedos, std_errors).any(1).nonzero(as_tuple=True)[0]
     if confirm > 1 and len(again):
         albedos[again], std_errors[again] = _furnace_pass(model, z[again], confirm * n, seed + 1, scale[again])
     quadrature, diffuse = half_vector_albedo(model, z, scale)
     return Furnace(albedos, std_errors, diffuse, quadrature)
+
+
+def _significant_gain(albedos: Tensor, std_errors: Tensor) -> Tensor:
+    """Monte Carlo albedos above 1 by more than 3 standard errors."""
+    return albedos > 1.0 + 3.0 * std_errors
 
 
 def half_vector_grid(n_theta: int = QUADRATURE_THETA, n_phi: int = QUADRATURE_PHI) -> tuple[Tensor, Tensor]:
@@ -252,7 +257,7 @@ def half_vector_nodes(mu: float, n_theta: int = QUADRATURE_THETA) -> tuple[Tenso
     wo = reflect(wi, h) maps the half-vector hemisphere onto all outgoing directions
     with d omega_o = 4 (wi . h) d omega_h; those below the horizon get weight 0."""
     h, d_omega = half_vector_grid(n_theta)
-    wi = torch.tensor([math.sqrt(1 - mu * mu), 0.0, mu])
+    wi = view_directions(torch.tensor([[mu]]))[0]
     cos_h = h @ wi
     wo = 2 * cos_h[:, None] * h - wi
     weight = torch.where((cos_h > 0) & (wo[:, 2] > 0), 4 * cos_h * d_omega, torch.zeros_like(cos_h))
@@ -296,7 +301,7 @@ def _furnace_pass(model: NeuralModel, z: Tensor, n: int, seed: int, scale: Tenso
     per_chunk = max(1, chunk // n)
     with torch.no_grad():
         for a, mu in enumerate(VIEW_COSINES):
-            wi = torch.tensor([[math.sqrt(1 - mu * mu), 0.0, mu]])
+            wi = view_directions(torch.tensor([[mu]]))
             for k0 in range(0, len(z), per_chunk):
                 zk = z[k0:k0 + per_chunk].repeat_interleave(n, 0)
                 m = len(zk) // n

@@ -39,12 +39,13 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from safetensors.torch import load_file, save_file
+from safetensors.torch import save_file
 from torch import Tensor, nn
 
 from ..brdf.model import LayeredBsdf, luminance, params_from_vectors
 from ..distributed import data_parallel, placement
-from .data import Batch, cosine_hemisphere, make_batch, parameter_vectors
+from .data import Batch, cosine_hemisphere, make_batch, parameter_vectors, view_directions
+from .weights import load_networks
 from .networks import MAX_LOG_F, Decoder, Encoder, SamplingDecoder, saturation
 
 LOSS_WEIGHTS = (0.95, 0.04, 0.01)  # f, T, R (paper sec. 4)
@@ -116,8 +117,7 @@ def energy_penalty(dec: Decoder, z: Tensor, n: int, gen: torch.Generator) -> Ten
     wo; the albedo of f_neu + T * white Lambertian is estimated per channel.
     """
     m = len(z)
-    mu = 0.05 + 0.95 * torch.rand(m, 1, generator=gen)
-    wi = torch.cat([(1 - mu * mu).sqrt(), torch.zeros_like(mu), mu], -1).repeat_interleave(n, 0)
+    wi = view_directions(0.05 + 0.95 * torch.rand(m, 1, generator=gen)).repeat_interleave(n, 0)
     wi, wo = wi.to(z.device), cosine_hemisphere(m * n, gen).to(z.device)
     f, t, _ = dec(z.repeat_interleave(n, 0), wi, wo)
     albedo = (f * (math.pi / wo[:, 2:3]) + t).reshape(m, n, 3).mean(1)
@@ -132,8 +132,7 @@ def albedo_loss(dec: Decoder, z: Tensor, vectors: Tensor, n: int, gen: torch.Gen
     so the squared error's gradient is unbiased up to the estimate's variance, which the
     0.05 in the denominator keeps from dominating dark materials."""
     k, device = len(z), z.device
-    mu = 0.05 + 0.95 * torch.rand(k, 1, generator=gen)
-    wi = torch.cat([(1 - mu * mu).sqrt(), torch.zeros_like(mu), mu], -1).repeat_interleave(n, 0)
+    wi = view_directions(0.05 + 0.95 * torch.rand(k, 1, generator=gen)).repeat_interleave(n, 0)
     with torch.no_grad():
         bsdf = LayeredBsdf(params_from_vectors(vectors.cpu().repeat_interleave(n, 0)), torch.ones(1, 3))
         wo = bsdf.sample(wi, torch.rand(k * n, 3, generator=gen))
@@ -261,9 +260,7 @@ class Trainer:
         return True
 
     def _load(self, path: Path) -> None:
-        tensors = load_file(str(path))
-        for name, net in (("encoder", self.encoder), ("decoder", self.decoder), ("sampler", self.sampler)):
-            net.load_state_dict({k[len(name) + 1:]: v for k, v in tensors.items() if k.startswith(name + ".")})
+        load_networks(path, {"encoder": self.encoder, "decoder": self.decoder, "sampler": self.sampler})
 
     # ---- training -------------------------------------------------------------------
     def _decoder_step(self, energy: bool = False) -> float:

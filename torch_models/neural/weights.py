@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from safetensors.torch import load_file
+from torch import nn
 
 from .networks import Decoder, Encoder, SamplingDecoder
 
@@ -26,6 +27,13 @@ def digest(folder: Path = SHIPPED) -> str:
     return hashlib.sha256((folder / "weights.safetensors").read_bytes()).hexdigest()
 
 
+def load_networks(path: Path, nets: dict[str, nn.Module]) -> None:
+    """Fill each network from a weights file whose keys are prefixed by its name (``decoder.net.0.weight``)."""
+    tensors = load_file(str(path))
+    for name, net in nets.items():
+        net.load_state_dict({k[len(name) + 1:]: v for k, v in tensors.items() if k.startswith(name + ".")})
+
+
 def load(folder: Path = SHIPPED) -> NeuralModel:
     """The networks of a training run folder (weights.safetensors + state.json), frozen."""
     weights, state = folder / "weights.safetensors", folder / "state.json"
@@ -33,9 +41,8 @@ def load(folder: Path = SHIPPED) -> NeuralModel:
         raise FileNotFoundError(f"{folder}: no trained decoder here (weights.safetensors, state.json); "
                                 "run `python -m torch_models train-decoder` first")
     cfg = json.loads(state.read_text())["config"]
-    tensors = load_file(str(weights))
     nets = {"encoder": Encoder(), "decoder": Decoder(cfg["width"], cfg["depth"]), "sampler": SamplingDecoder()}
-    for name, net in nets.items():
-        net.load_state_dict({k[len(name) + 1:]: v for k, v in tensors.items() if k.startswith(name + ".")})
+    load_networks(weights, nets)
+    for net in nets.values():
         net.eval().requires_grad_(False)
     return NeuralModel(nets["encoder"], nets["decoder"], nets["sampler"], digest(folder))
