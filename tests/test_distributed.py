@@ -17,11 +17,12 @@ def test_torchrun_trains_the_decoder_on_two_ranks(tmp_path: Path) -> None:
     cfg = tmp_path / "tiny.json"
     cfg.write_text(json.dumps(dict(TINY, steps=20, sampler_steps=4, checkpoint_every=12)))
     out = tmp_path / "run"
-    done = subprocess.run([sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2",
-                           "--master_port", "29531", "-m", "torch_models", "train-decoder",
+    done = subprocess.run([sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node", "2",
+                           "-m", "torch_models", "train-decoder",
                            "--config", str(cfg), "--out", str(out)],
                           cwd=ROOT, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr[-2000:]
+    # the ranks' own errors come first, the launcher's summary last
+    assert done.returncode == 0, done.stderr[:4000] + "\n...\n" + done.stderr[-1000:]
     state = json.loads((out / "state.json").read_text())
     assert state["step"] == 24 and [h["step"] for h in state["config"]["history"]] == [12, 24]
     weights = load_file(str(out / "weights.safetensors"))

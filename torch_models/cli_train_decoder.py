@@ -23,6 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from .cli import InputError
+    from .distributed import finish
     from .neural.train import TrainConfig, Trainer
 
     if not args.config.is_file():
@@ -38,6 +39,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{args.out}: holds a run already; pass --resume or choose another --out")
     try:
         trainer.run()
+        finish(trainer.where)
     except KeyboardInterrupt:
         print(f"interrupted at step {trainer.step}; the last checkpoint is in {args.out}")
         return 130

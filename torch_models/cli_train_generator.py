@@ -32,6 +32,7 @@ def run(args: argparse.Namespace) -> int:
     import json
 
     from .cli import InputError
+    from .distributed import finish
     from .generator.train import GeneratorTrainConfig, GeneratorTrainer, load_corpus
 
     if not args.config.is_file():
@@ -47,6 +48,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"resuming at step {trainer.step}")
     try:
         trainer.run(stop_at=args.stop_at)
+        finish(trainer.where)
     except KeyboardInterrupt:
         print(f"interrupted at step {trainer.step}; the last checkpoint is in {args.out}")
         return 130

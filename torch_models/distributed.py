@@ -44,3 +44,16 @@ def data_parallel(module: nn.Module, where: Placement) -> nn.Module:
         return module
     return nn.parallel.DistributedDataParallel(module, device_ids=[where.device.index]
                                                if where.device.type == "cuda" else None)
+
+
+def finish(where: Placement) -> None:
+    """Waits for every rank (rank 0 may still be writing its last checkpoint), then
+    leaves the process group: a rank that exits while its peer still holds the
+    connection can abort in gloo's teardown."""
+    if where.world == 1:
+        return
+    import torch.distributed as dist
+
+    if dist.is_initialized():
+        dist.barrier()
+        dist.destroy_process_group()

@@ -97,7 +97,7 @@ class GeneratorTrainer:
         self.cfg, self.out = cfg, out
         if cfg.threads:
             torch.set_num_threads(cfg.threads)
-        where = placement(cfg.device)
+        self.where = where = placement(cfg.device)
         self.rank, self.world, self.device = where.rank, where.world, where.device
         train = [s for s in samples if not corpus.is_held_out(s.asset_id)]
         if not train:
