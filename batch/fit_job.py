@@ -3,9 +3,10 @@
 Runs ``python -m torch_models fit`` in-process once per material folder
 (``materials/<name>/`` -> ``materials/<name>/neural/``), so torch is imported
 once per asset, and writes ``fit.json`` with each material's white-furnace
-result. The fit repairs a latent that gains energy by scaling its f_neu
-(``energy_scale``, see docs/neural-material.md) instead of dropping the
-material; how many were repaired is recorded per material and in the manifest.
+result. The fit refits a latent that gains energy under the energy bound and
+scales the f_neu of one that still does (``energy_scale``, see
+docs/neural-material.md) instead of dropping the material; how many passed as
+fitted, after the refit and by scaling is recorded per material and in the manifest.
 """
 from __future__ import annotations
 

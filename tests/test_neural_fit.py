@@ -47,7 +47,32 @@ def test_fit_writes_latent_textures_and_fits_each_vector_once(tiny_weights: Path
     for k in (0, 1):
         latent = read_exr(out / f"latent_{k}.exr")
         assert latent.shape == (8, 8, 3) and np.isfinite(latent).all() and (np.abs(latent) < 1.1).all()
-    assert record["furnace"]["passed"] + record["furnace"]["repaired_by_scaling"] == record["fitted_vectors"]
+    counts = record["furnace"]
+    assert counts["passed_as_fitted"] + counts["passed_after_refit"] + counts["repaired_by_scaling"] \
+        == counts["checked"] == record["fitted_vectors"]
+
+
+def test_latents_that_gain_energy_are_refitted_under_the_bound() -> None:
+    """Latents far out in the box that gain energy: the refit brings them below 1 while pulling
+    them towards their materials; whatever still fails is scaled, and a fresh furnace agrees."""
+    from torch_models.neural import weights
+    from torch_models.neural.data import parameter_vectors
+
+    model = weights.load()
+    box = torch.rand(256, 6, generator=torch.Generator().manual_seed(0)) * 2.2 - 1.1
+    first = fit.furnace(model, box)
+    gaining = box[first.failing & (first.quadrature.max(1).values > 1.05)][:6]
+    assert len(gaining) >= 3
+    vectors = parameter_vectors(len(gaining), np.random.default_rng(0))
+    bounded = fit.fit_bounded(model, vectors, gaining)
+    counts = bounded.counts()
+    assert bounded.refitted.all() and counts["passed_as_fitted"] == 0
+    assert counts["passed_after_refit"] >= len(gaining) // 2
+    assert counts["passed_after_refit"] + counts["repaired_by_scaling"] == len(gaining)
+    before = fit.furnace(model, gaining).quadrature.max(1).values
+    assert (bounded.check.quadrature.max(1).values < before).all()
+    scale = bounded.check.energy_scale()
+    assert not fit.furnace(model, bounded.z, n=2048, seed=5, energy_scale=scale).failing.any()
 
 
 def test_fit_is_bit_reproducible_with_threads(tiny_weights: Path) -> None:

@@ -79,8 +79,9 @@ def fit_and_compare(args: argparse.Namespace, materials: list) -> None:  # type:
         folder = args.out / f"type_{mat.type}"
         vectors = fit.read_vectors(folder)
         z = fit.fit_latents(model, vectors.unique, args.fit_steps, seed=args.seed)
-        check = fit.furnace(model, z)
-        record = write_latents(folder / "neural", vectors, z, check)
+        bounded = fit.fit_bounded(model, vectors.unique, z, seed=args.seed)
+        z, check = bounded.z, bounded.check
+        record = write_latents(folder / "neural", vectors, bounded)
         (folder / "neural" / "neural.json").write_text(json.dumps(dict(record, decoder_sha256=model.digest), indent=1))
         latents = ParamMap(vectors.texels(z))
         scales = ParamMap(vectors.texels(check.energy_scale()))
@@ -122,7 +123,8 @@ def generate_from_prompts(out: Path, seed: int) -> None:
     rows, records = [], []
     for ending in DEMO_PROMPT_ENDINGS:
         result = gen.generate(inp, f"{subject} with {ending}", model, cfg, seed)
-        frames = gen.preview(inp, result.latents, frames=2, resolution=96, spp=8)
+        frames = gen.preview(inp, result.latents, frames=2, resolution=96, spp=8,
+                             energy_scale=result.energy_scale)
         rows.append(np.concatenate(list(agx(frames.reshape(-1, *frames.shape[2:])).reshape(frames.shape)), 1))
         records.append({"prompt": f"{subject} with {ending}", "type": result.type, "warnings": result.warnings,
                         "seconds": result.seconds})

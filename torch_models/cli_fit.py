@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # torch stays out of ``--help``
     from torch import Tensor
 
-    from .neural.fit import Furnace, MaterialVectors
+    from .neural.fit import BoundedFit, MaterialVectors
 
 HELP = "fit the latent textures of an enhanced material against the frozen decoder"
 
@@ -81,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
                     save_file({"latents": latest["z"], "step": torch.tensor(latest["step"])}, str(tmp))
             print(f"interrupted at step {latest['step']}; --resume continues from {state}")
             return 130
-    record = write_latents(args.out, mv, z, fit.furnace(model, z))
+    record = write_latents(args.out, mv, fit.fit_bounded(model, mv.unique, z, seed=args.seed))
     record.update(decoder_sha256=model.digest, material=os.path.relpath(args.material, args.out),
                   steps=args.steps, final_loss=latest["loss"])
     with atomic_path(args.out / "neural.json") as tmp:
@@ -91,25 +91,26 @@ def run(args: argparse.Namespace) -> int:
         emit_done(args.out)
         return 0
     print(f"fitted {len(mv.unique)} vectors ({mv.exact_unique} exact) for {record['texels']} texels; "
-          f"furnace: {record['furnace']['passed']}/{len(z)} pass; wrote {args.out}")
+          f"furnace: {record['furnace']['passed_as_fitted']}/{len(z)} pass as fitted, "
+          f"{record['furnace']['passed_after_refit']} after the energy refit, "
+          f"{record['furnace']['repaired_by_scaling']} scaled; wrote {args.out}")
     return 0
 
 
-def write_latents(out: Path, mv: MaterialVectors, z: Tensor, check: Furnace) -> dict:
+def write_latents(out: Path, mv: MaterialVectors, bounded: BoundedFit) -> dict:
     """Write the latent textures (and the energy scale where the furnace repaired) into
     ``out``; returns the record for neural.json (counts, furnace, the constant latent)."""
     from .cli_enhance import write_exr
     from .neural import fit
 
     out.mkdir(parents=True, exist_ok=True)
+    z, check = bounded.z, bounded.check
     scale = check.energy_scale()
     record: dict = {"texels": int(len(mv.inverse)) if mv.shape else 1,
                     "exact_unique_vectors": mv.exact_unique, "fitted_vectors": len(mv.unique),
                     "cluster_bound": f"each texel within {fit.QUANT / 2:g} of its representative "
                                      "per normalised parameter",
-                    "furnace": {"checked": len(z), "passed": int((~check.failing).sum()),
-                                "repaired_by_scaling": int(check.failing.sum()),
-                                "worst_albedo": float(check.albedo.max())}}
+                    "furnace": dict(bounded.counts(), worst_albedo=float(check.albedo.max()))}
     if mv.shape is None:
         record["latent"] = [float(x) for x in z[0]]
         record["energy_scale"] = float(scale[0])
