@@ -107,15 +107,23 @@ def test_a_baked_metal_keeps_fuzz_off_and_its_base_colour(checkpoint, tmp_path):
     assert np.allclose(read_exr(out / "base_color.exr").reshape(-1, 3), [0.9, 0.2, 0.1], atol=1e-3)
 
 
-def test_a_generator_trained_for_another_decoder_is_flagged(tmp_path: Path) -> None:
-    from torch_models.generator.generate import decoder_mismatch
+def test_a_generator_trained_for_another_encoder_is_flagged(tmp_path: Path) -> None:
+    from torch_models.generator.generate import encoder_mismatch
 
-    (tmp_path / "state.json").write_text(json.dumps({"decoder_sha256": "a" * 64}))
-    assert decoder_mismatch(tmp_path, "a" * 64) is None
-    warning = decoder_mismatch(tmp_path, "b" * 64)
+    (tmp_path / "state.json").write_text(json.dumps({"encoder_sha256": "a" * 64}))
+    assert encoder_mismatch(tmp_path, "a" * 64) is None
+    warning = encoder_mismatch(tmp_path, "b" * 64)
     assert warning is not None and "aaaaaaaaaaaa" in warning and "bbbbbbbbbbbb" in warning
     (tmp_path / "state.json").write_text(json.dumps({}))
-    assert decoder_mismatch(tmp_path, "b" * 64) is None  # older runs recorded nothing
+    assert encoder_mismatch(tmp_path, "b" * 64) is None  # older runs recorded nothing
+
+
+def test_the_shipped_generator_matches_the_shipped_encoder() -> None:
+    from torch_models.generator.generate import SHIPPED, encoder_mismatch
+    from torch_models.neural import weights
+
+    assert encoder_mismatch(SHIPPED, weights.encoder_digest()) is None
+    assert json.loads((SHIPPED / "state.json").read_text())["encoder_sha256"] == weights.encoder_digest()
 
 
 def test_roughness_and_metalness_come_from_the_file_or_the_bake(tmp_path):
@@ -151,3 +159,19 @@ def test_roughness_and_metalness_come_from_the_file_or_the_bake(tmp_path):
     both = stack_maps(rough, np.full((2, 2, 1), 0.5, np.float32))
     assert both.shape == (4, 4, 2) and np.array_equal(both[..., 0], rough[..., 0]) and np.all(both[..., 1] == 0.5)
     assert stack_maps(np.full((1, 1, 1), 0.2, np.float32), rough).shape == (4, 4, 2)
+
+
+def test_energy_guard_darkens_only_the_texels_that_gain_energy() -> None:
+    from torch_models.generator.generate import energy_guard
+    from torch_models.neural import fit, weights
+
+    model = weights.load()
+    box = torch.rand(128, 6, generator=torch.Generator().manual_seed(0)) * 2.2 - 1.1
+    check = fit.furnace(model, box)
+    gaining, bounded = box[check.failing][0], box[~check.failing][0]
+    texture = torch.stack([bounded] * 15 + [gaining]).reshape(4, 4, 6).numpy()
+    scale = energy_guard(texture)
+    assert scale.shape == (4, 4) and (scale.reshape(-1)[:15] == 1).all() and 0 < scale.reshape(-1)[15] < 1
+    fresh = fit.furnace(model, torch.from_numpy(texture.reshape(-1, 6)), seed=3,
+                        energy_scale=torch.from_numpy(scale.reshape(-1)))
+    assert not fresh.failing.any()

@@ -82,26 +82,30 @@ def run(args: argparse.Namespace) -> int:
 
     result = gen.generate(inp, args.prompt, model, cfg, args.seed, args.steps, args.views, args.guidance,
                           args.texture_size, progress if jsonl else None)
-    mismatch = gen.decoder_mismatch(args.checkpoint or gen.SHIPPED, decoder.digest)
+    mismatch = gen.encoder_mismatch(args.checkpoint or gen.SHIPPED, weights.encoder_digest())
     if mismatch:
         result.warnings.append(mismatch)
     args.out.mkdir(parents=True, exist_ok=True)
     write_exr(args.out / "latent_0.exr", result.latents[..., :3])
     write_exr(args.out / "latent_1.exr", result.latents[..., 3:])
     write_exr(args.out / "base_color.exr", inp.base_color)
+    darkened = float((result.energy_scale < 1).mean())
+    if darkened > 0:
+        write_exr(args.out / "energy_scale.exr", result.energy_scale[..., None])
     if not inp.had_uvs:
         _write_unwrapped(inp, args.out / "mesh.glb")
     record = {"prompt": args.prompt, "type": result.type, "seed": args.seed, "steps": args.steps,
               "views": args.views, "guidance": args.guidance, "texture_size": args.texture_size,
               "projection": result.projection.stats(result.charts), "warnings": result.warnings,
-              "notes": inp.notes, "seconds": result.seconds, "energy_scale": 1.0,
+              "notes": inp.notes, "seconds": result.seconds,
+              "energy_scale": "energy_scale.exr" if darkened > 0 else 1.0, "texels_darkened_by_guard": darkened,
               "checkpoint": str(args.checkpoint or gen.SHIPPED),
               "material": str(args.material) if args.material is not None else None,
               "decoder_sha256": decoder.digest}
     if not args.no_preview:
         from .render.tonemap import agx, to_png
 
-        frames = gen.preview(inp, result.latents)
+        frames = gen.preview(inp, result.latents, energy_scale=result.energy_scale)
         to_png(np.concatenate(list(agx(frames)), 1), args.out / "preview.png")
     with atomic_path(args.out / "neural.json") as tmp:
         tmp.write_text(json.dumps(record, indent=1))

@@ -39,14 +39,14 @@ def load_generator(folder: Path = SHIPPED) -> tuple[LatentGenerator, GeneratorTr
     return model.eval().requires_grad_(False), cfg
 
 
-def decoder_mismatch(folder: Path, decoder_digest: str) -> str | None:
-    """A warning when the generator at ``folder`` learned the latents of another decoder:
-    its output would decode to materials it never meant."""
-    trained = json.loads((folder / "state.json").read_text()).get("decoder_sha256")
-    if trained is None or trained == decoder_digest:
+def encoder_mismatch(folder: Path, encoder_digest: str) -> str | None:
+    """A warning when the generator at ``folder`` learned the latents of another encoder:
+    the decoder in use would read its output as materials it never meant."""
+    trained = json.loads((folder / "state.json").read_text()).get("encoder_sha256")
+    if trained is None or trained == encoder_digest:
         return None
-    return (f"this generator was trained on latents of decoder {trained[:12]}, but the decoder in use is "
-            f"{decoder_digest[:12]}: its materials will not be the ones the prompt asks for; "
+    return (f"this generator was trained on the latent space of encoder {trained[:12]}, but the decoder in use "
+            f"has encoder {encoder_digest[:12]}: its materials will not be the ones the prompt asks for; "
             "retrain it with `python -m torch_models train-generator`")
 
 
@@ -69,6 +69,7 @@ class Generation:
     projection: Projection
     charts: Tensor
     type: int
+    energy_scale: np.ndarray  # (H, W) f_neu scale per texel from the energy guard (1 where none is needed)
     warnings: list[str] = field(default_factory=list)
     seconds: dict[str, float] = field(default_factory=dict)
 
@@ -108,6 +109,10 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     charts = torch.from_numpy(raster.coverage)
     proj = project(values * (fine.coverage > 0.5)[..., None], fine, fine_cams, charts, diffuse_fallback_latent())
     times["projection"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    texture = proj.texture.numpy().astype(np.float16).astype(np.float32)  # as the half-float EXRs hold it
+    energy = energy_guard(texture)
+    times["energy_guard"] = time.perf_counter() - t0
     stats = proj.stats(charts)
     if stats["fallback"] > 0.05:
         warnings.append(f"{stats['fallback']:.0%} of the texels lie on UV islands no view saw: "
@@ -115,11 +120,26 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     if stats["seen"] < SEEN_WARNING:
         warnings.append(f"only {stats['seen']:.0%} of the texels were seen squarely by a view (thin parts, many "
                         "small UV islands or hidden surfaces): the rest is inpainted from their neighbours")
-    return Generation(proj.texture.numpy(), generated, proj, charts, type_, warnings, times)
+    return Generation(texture, generated, proj, charts, type_, energy, warnings, times)
 
 
-def preview(inp: MeshInput, latents: np.ndarray, frames: int = 4, resolution: int = 128, spp: int = 16) -> np.ndarray:
-    """Scene-linear renders (frames, H, W, 3) of the mesh with the baked latents, lit by the default probe.
+def energy_guard(latents: np.ndarray) -> np.ndarray:
+    """(H, W) f_neu scale per texel that keeps every texel inside the white furnace.
+
+    Sampling and view averaging can land on latents that gain energy (a few in ten
+    thousand texels): ``fit.guard`` measures each distinct latent and darkens the
+    ones that do, as ``fit`` repairs a fitted material."""
+    from ..neural import fit, weights
+
+    unique, inverse = np.unique(latents.reshape(-1, latents.shape[-1]), axis=0, return_inverse=True)
+    scale = fit.guard(weights.load(), torch.from_numpy(unique))
+    return scale.numpy()[inverse.reshape(-1)].reshape(latents.shape[:2])
+
+
+def preview(inp: MeshInput, latents: np.ndarray, frames: int = 4, resolution: int = 128, spp: int = 16,
+            energy_scale: np.ndarray | None = None) -> np.ndarray:
+    """Scene-linear renders (frames, H, W, 3) of the mesh with the baked latents (f_neu scaled by
+    the (H, W) ``energy_scale`` map when given), lit by the default probe.
 
     G-buffer shading (no shadows, no interreflection), the same as the neural material's ball preview."""
     from ..neural import weights
@@ -131,14 +151,16 @@ def preview(inp: MeshInput, latents: np.ndarray, frames: int = 4, resolution: in
     model = weights.load()
     env = EnvMap.load(DEFAULT_PROBE)
     cams = orbit_cameras(frames, resolution)
-    iv: IntrinsicViews = render_intrinsics(inp.mesh, cams, inp.base_color, latents)
+    scale = np.ones(latents.shape[:2], np.float32) if energy_scale is None else energy_scale
+    iv: IntrinsicViews = render_intrinsics(inp.mesh, cams, inp.base_color,
+                                           np.concatenate([latents, scale[..., None]], -1))
     out = []
     for f in range(frames):
         mask = (iv.coverage[f] > 0.5).numpy()
         to_cam = cams.origins[f].float() - iv.positions[f]
         to_cam = (to_cam / to_cam.norm(dim=-1, keepdim=True).clamp(min=1e-12)).numpy()
-        lat = iv.latents[f].numpy().reshape(-1, 6)[mask.ravel()]
+        packed = torch.from_numpy(iv.latents[f].numpy().reshape(-1, 7)[mask.ravel()])
         base = iv.base_color[f].numpy().reshape(-1, 3)[mask.ravel()]
-        bsdf = NeuralBsdf(model, torch.from_numpy(lat), torch.from_numpy(base))
+        bsdf = NeuralBsdf(model, packed[:, :6], torch.from_numpy(base), packed[:, 6:])
         out.append(shade_gbuffer(lambda n: bsdf, env, iv.normals[f].numpy(), to_cam, mask, spp=spp, seed=f))
     return np.stack(out)

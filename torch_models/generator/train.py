@@ -110,7 +110,7 @@ class GeneratorTrainer:
         self.step = 0
         self.history: list[dict] = []
         self.train_objects = len(train)
-        self.decoder_digest = weights.digest()  # the corpus latents are the shipped encoder's
+        self.encoder_digest = weights.encoder_digest()  # the corpus latents are the shipped encoder's
 
     # ---- checkpoints ---------------------------------------------------------------
     def save(self) -> None:
@@ -129,7 +129,7 @@ class GeneratorTrainer:
         with atomic_path(self.out / "optimizer.safetensors") as tmp:
             save_file(moments, str(tmp))
         state = {"step": self.step, "config": self.cfg.to_dict(), "history": self.history,
-                 "train_objects": self.train_objects, "decoder_sha256": self.decoder_digest}
+                 "train_objects": self.train_objects, "encoder_sha256": self.encoder_digest}
         with atomic_path(self.out / "state.json") as tmp:
             tmp.write_text(json.dumps(state, indent=1))
         plot_history(self.history, self.out / "training_curve.png")

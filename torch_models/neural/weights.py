@@ -27,6 +27,17 @@ def digest(folder: Path = SHIPPED) -> str:
     return hashlib.sha256((folder / "weights.safetensors").read_bytes()).hexdigest()
 
 
+def encoder_digest(folder: Path = SHIPPED) -> str:
+    """sha256 of the encoder's tensors alone: names the latent space. A decoder fine-tuned
+    with its encoder frozen keeps it, and with it what the generator learned to produce."""
+    h = hashlib.sha256()
+    for name, tensor in sorted(load_file(str(folder / "weights.safetensors")).items()):
+        if name.startswith("encoder."):
+            h.update(name.encode())
+            h.update(tensor.contiguous().numpy().tobytes())
+    return h.hexdigest()
+
+
 def load_networks(path: Path, nets: dict[str, nn.Module]) -> None:
     """Fill each network from a weights file whose keys are prefixed by its name (``decoder.net.0.weight``)."""
     tensors = load_file(str(path))
