@@ -50,13 +50,15 @@ def test_generate_writes_latent_textures_and_a_preview(checkpoint, tmp_path):
     assert np.isfinite(a).all() and np.abs(np.concatenate([a, b], -1)).max() <= 1.0 + 1e-3
     record = json.loads((out / "neural.json").read_text())
     assert record["type"] == 1 and record["views"] == 3
+    guarded = record["energy_scale"] == "energy_scale.exr"  # the guard ran; its map is written when it darkened
+    assert guarded == (record["texels_darkened_by_guard"] > 0) == (out / "energy_scale.exr").exists()
     share = record["projection"]
     assert share["seen"] > 0 and share["seen"] + share["inpainted"] + share["fallback"] == pytest.approx(1.0)
     with Image.open(out / "preview.png") as im:
         assert im.size == (4 * 128, 128)
         assert np.asarray(im).max() > 0  # the object is lit
     again = tmp_path / "again"
-    assert main(["generate", *args[:4], str(again), *args[5:], "--no-preview"]) == 0
+    assert main(["generate", *args[:4], str(again), *args[5:], "--no-preview", "--no-energy-guard"]) == 0
     assert np.array_equal(read_exr(again / "latent_0.exr"), a)  # deterministic per seed
 
 
@@ -66,7 +68,7 @@ def test_mesh_without_uvs_is_unwrapped(checkpoint, tmp_path):
     trimesh.creation.icosphere(subdivisions=2).export(str(obj))
     out = tmp_path / "out"
     assert main(["generate", str(obj), "--prompt", "plastic ball", "--out", str(out), "--views", "2", "--steps", "1",
-                 "--texture-size", "16", "--checkpoint", str(checkpoint), "--no-preview"]) == 0
+                 "--texture-size", "16", "--checkpoint", str(checkpoint), "--no-preview", "--no-energy-guard"]) == 0
     record = json.loads((out / "neural.json").read_text())
     assert any("xatlas" in n for n in record["notes"]) and record["type"] == 0 and record["warnings"]
     mesh = trimesh.load(out / "mesh.glb", force="mesh")
@@ -84,11 +86,13 @@ def test_a_mostly_inpainted_texture_is_warned_about(checkpoint):
 
     model, cfg = gen.load_generator(checkpoint)
     inp = load_mesh(GLB)
-    one = gen.generate(inp, "silver metal with light dust", model, cfg, steps=1, views=1, texture_size=32)
+    one = gen.generate(inp, "silver metal with light dust", model, cfg, steps=1, views=1, texture_size=32,
+                       guard_energy=False)
     assert one.views.shape == (1, 6, cfg.model.size, cfg.model.size)  # what was projected, for round-trip checks
     assert one.projection.stats(one.charts)["seen"] < gen.SEEN_WARNING
     assert any("inpainted from their neighbours" in w for w in one.warnings)
-    many = gen.generate(inp, "silver metal with light dust", model, cfg, steps=1, views=8, texture_size=32)
+    many = gen.generate(inp, "silver metal with light dust", model, cfg, steps=1, views=8, texture_size=32,
+                        guard_energy=False)
     assert many.projection.stats(many.charts)["seen"] > one.projection.stats(one.charts)["seen"]
 
 

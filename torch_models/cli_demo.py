@@ -122,7 +122,9 @@ def generate_from_prompts(out: Path, seed: int) -> None:
     subject = f"a {asset.shape}: {asset.pbr.name} {'metal' if asset.family == 'metal' else 'material'}"
     rows, records = [], []
     for ending in DEMO_PROMPT_ENDINGS:
-        result = gen.generate(inp, f"{subject} with {ending}", model, cfg, seed)
+        # the corpus's texture size: what the 32 px views resolve, and a quarter of the default's energy-guard time
+        result = gen.generate(inp, f"{subject} with {ending}", model, cfg, seed,
+                              texture_size=cfg.corpus.texture_size)
         frames = gen.preview(inp, result.latents, frames=2, resolution=96, spp=8,
                              energy_scale=result.energy_scale)
         rows.append(np.concatenate(list(agx(frames.reshape(-1, *frames.shape[2:])).reshape(frames.shape)), 1))

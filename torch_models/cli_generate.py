@@ -43,6 +43,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint", type=Path, default=None,
                         help="a train-generator run folder (default: the shipped generator)")
     parser.add_argument("--no-preview", action="store_true", help="skip the preview render")
+    parser.add_argument("--no-energy-guard", action="store_true",
+                        help="skip the energy guard (about 40 ms per texel on one thread); texels may then gain energy")
     parser.add_argument("--material", type=Path, default=None,
                         help="a baked enhanced-material folder whose base colour replaces the mesh file's "
                              "(and whose metalness keeps fuzz/scattering off metals)")
@@ -81,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
         emit("progress", step=step, total=total)
 
     result = gen.generate(inp, args.prompt, model, cfg, args.seed, args.steps, args.views, args.guidance,
-                          args.texture_size, progress if jsonl else None)
+                          args.texture_size, progress if jsonl else None, not args.no_energy_guard)
     mismatch = gen.encoder_mismatch(args.checkpoint or gen.SHIPPED, weights.encoder_digest())
     if mismatch:
         result.warnings.append(mismatch)

@@ -84,8 +84,9 @@ def _upsample(values: Tensor, coverage: Tensor, factor: int) -> Tensor:
 
 def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: GeneratorTrainConfig, seed: int = 0,
              steps: int = DEFAULT_STEPS, views: int = DEFAULT_VIEWS, guidance: float = 2.0, texture_size: int = 64,
-             progress: Callable[[int, int], None] | None = None) -> Generation:
-    """The latent texture of ``inp`` for ``prompt``; ``progress(step, steps)`` follows the sampling."""
+             progress: Callable[[int, int], None] | None = None, guard_energy: bool = True) -> Generation:
+    """The latent texture of ``inp`` for ``prompt``; ``progress(step, steps)`` follows the sampling.
+    ``guard_energy`` False skips the energy guard (its scale map is then all 1)."""
     times: dict[str, float] = {}
     t0 = time.perf_counter()
     type_, warnings = prompt_type(prompt, metallic=inp.metallic)
@@ -111,7 +112,7 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     times["projection"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     texture = proj.texture.numpy().astype(np.float16).astype(np.float32)  # as the half-float EXRs hold it
-    energy = energy_guard(texture)
+    energy = energy_guard(texture) if guard_energy else np.ones(texture.shape[:2], np.float32)
     times["energy_guard"] = time.perf_counter() - t0
     stats = proj.stats(charts)
     if stats["fallback"] > 0.05:
