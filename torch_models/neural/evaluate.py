@@ -94,15 +94,20 @@ def fit_and_compare(setup: BallSetup, model: NeuralModel, vectors: np.ndarray, b
     return results, bounded
 
 
-def reference_furnace(vectors: np.ndarray) -> np.ndarray:
+def reference_furnace(vectors: np.ndarray, chunk: int = 64) -> np.ndarray:
     """(K,) the analytic model's own white-furnace albedo (brightest channel, worst view angle,
     the furnace's half-vector quadrature): what a faithful fit of each material inherits."""
-    worst = np.zeros(len(vectors))
-    for k, vector in enumerate(vectors):
-        for mu in VIEW_COSINES:
-            wi, wo, weight = half_vector_nodes(mu)
-            bsdf = LayeredBsdf(params_from_vectors(torch.from_numpy(vector)[None].expand(len(wo), -1)),
-                               torch.zeros(1, 3))
-            reflected = (bsdf.eval_neural_part(wi.expand(len(wo), 3), wo) * weight[:, None]).sum(0).max()
-            worst[k] = max(worst[k], float(reflected + bsdf.transmission(wi[None])[0, 0]))
-    return worst
+    pool = torch.from_numpy(vectors)
+    worst = torch.zeros(len(pool))
+    for mu in VIEW_COSINES:
+        wi, wo, weight = half_vector_nodes(mu)
+        m = len(wo)
+        for k0 in range(0, len(pool), chunk):
+            k = slice(k0, k0 + chunk)
+            n = len(pool[k])
+            bsdf = LayeredBsdf(params_from_vectors(pool[k].repeat_interleave(m, 0)), torch.zeros(1, 3))
+            wi_k = wi.expand(n * m, 3)  # one tensor for both calls: the model keeps its per-view terms
+            f = bsdf.eval_neural_part(wi_k, wo.repeat(n, 1)).reshape(n, m, 3)
+            reflected = (f * weight[None, :, None]).sum(1).max(1).values
+            worst[k] = torch.maximum(worst[k], reflected + bsdf.transmission(wi_k).reshape(n, m)[:, 0])
+    return worst.numpy()

@@ -264,12 +264,12 @@ def _refit(model: NeuralModel, vectors: np.ndarray, z0: Tensor, steps: int, seed
     nodes = [half_vector_nodes(mu, *REFIT_GRID) for mu in VIEW_COSINES]
     z = z0.clone().requires_grad_(True)
     opt = torch.optim.Adam([z], lr=REFIT_LR)
-    ones = torch.ones(len(z))
     with deterministic():
         for step in range(steps):
             b = buffer[step % len(buffer)]
             pick = torch.randperm(len(z), generator=gen)[:REFIT_LATENTS]
-            excess = sum(torch.relu(_summed_albedo(model, z[pick], ones[pick], wi, wo, w)[0] - REFIT_TARGET)
+            unscaled = torch.ones(len(pick))
+            excess = sum(torch.relu(_summed_albedo(model, z[pick], unscaled, wi, wo, w)[0] - REFIT_TARGET)
                          for wi, wo, w in nodes)
             loss = decoder_loss(model.decoder, z[b.index], b) + excess.mean()
             opt.zero_grad()
