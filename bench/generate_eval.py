@@ -8,9 +8,10 @@ same base colour, G-buffer shading under the default probe, AgX. Reported per
 object and overall: PSNR (display-referred, over the object's pixels) and mean
 FLIP, for the generator and three baselines:
 - pbr: the plain PBR material (core.enhance.baseline), no enhancement;
-- procedural: core.enhance with the type the prompt names and the draws of
-  another enhancement seed (the object's own seed would hand this baseline the
-  object's own settings);
+- procedural: core.enhance with the type the prompt names and fixed default
+  draws (generator/prior.py; the object's own seed would hand this baseline the
+  object's own settings): the uplift prior the generator itself starts from, so
+  the generated-minus-procedural gap is what the prompt's wording adds;
 - retrieval: the mean latent of the training object whose caption embedding is
   closest to the prompt's, as one constant material.
 Validity: the share of generated texels that fail the white furnace (gain
@@ -45,7 +46,6 @@ sys.path.insert(0, str(REPO))
 
 from richmat_addon.core.enhance import baseline, enhance, is_metallic  # noqa: E402
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap  # noqa: E402
-from richmat_addon.core.prompt import prompt_type  # noqa: E402
 from torch_models.generator import DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural, text  # noqa: E402
 from torch_models.generator import generate as gen  # noqa: E402
 from torch_models.generator.dit import LatentGenerator  # noqa: E402
@@ -58,7 +58,6 @@ from torch_models.render.tonemap import agx  # noqa: E402
 SKIPPED_METRICS = "CLIP-FID, CMMD, LPIPS: skipped (their network weights are not available offline)"
 METHODS = ("generated", "pbr", "procedural", "retrieval")
 # Other enhancements for the gallery, in the captions' own words (Type 0, 1, 2, 4).
-PROCEDURAL_BASELINE_SEED = 2 ** 40  # no object's own draws (corpus.enhancement_seed stays far below)
 GALLERY_ENDINGS = ("light haze", "heavy haze, heavy dust", "light haze, glossy clearcoat",
                    "moderate haze, heavy fuzz, light subsurface scattering")
 
@@ -149,14 +148,12 @@ def evaluate(obj: HeldOut, model: LatentGenerator, cfg: GeneratorTrainConfig, ar
     t0, c0 = time.perf_counter(), time.process_time()
     result = gen.generate(obj.inp, obj.prompt, model, cfg, args.seed, args.steps, args.views, args.guidance, size)
     seconds, cpu_seconds = time.perf_counter() - t0, time.process_time() - c0
-    named_type, _ = prompt_type(obj.prompt, obj.inp.metallic)
     a = obj.asset
     raw_invalid, invalid = invalid_share(result.latents, result.energy_scale)
     candidates = {
         "generated": result.latents,
         "pbr": latents_of(baseline(a.pbr), size),
-        "procedural": latents_of(enhance(a.pbr, named_type, PROCEDURAL_BASELINE_SEED, ParamMap(a.world_normals),
-                                         ParamMap(a.world_positions)), size),
+        "procedural": result.prior,
         "retrieval": np.broadcast_to(retrieval.latent(obj.prompt), (size, size, 6)).copy(),
     }
     reference = render(obj.inp, latents_of(obj.material, size), args.eval_views, args.resolution, args.spp)
@@ -233,7 +230,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0, help="sampling seed")
     ap.add_argument("--checkpoint", type=Path, default=gen.SHIPPED)
-    ap.add_argument("--objects", type=int, default=8)
+    ap.add_argument("--objects", type=int, default=16)
     ap.add_argument("--views", type=int, default=DEFAULT_VIEWS, help="views generated")
     ap.add_argument("--eval-views", type=int, default=16, help="views rendered for the metrics")
     ap.add_argument("--steps", type=int, default=DEFAULT_STEPS)

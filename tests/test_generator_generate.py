@@ -179,3 +179,22 @@ def test_energy_guard_darkens_only_the_texels_that_gain_energy() -> None:
     fresh = fit.furnace(model, torch.from_numpy(texture.reshape(-1, 6)), seed=3,
                         energy_scale=torch.from_numpy(scale.reshape(-1)))
     assert not fresh.failing.any()
+
+
+def test_a_zero_residual_gives_back_the_uplift_prior(checkpoint, monkeypatch):
+    """The generator refines the enhancement rules' uplift: with nothing to add, every seen or
+    inpainted texel is the prior's latent (as half floats), and islands no view saw get the
+    diffuse fallback."""
+    from torch_models.generator import generate as gen
+    from torch_models.generator.mesh_input import load_mesh
+
+    model, cfg = gen.load_generator(checkpoint)
+    monkeypatch.setattr(model, "sample", lambda cond, *a, **k: torch.zeros_like(cond.prior))
+    inp = load_mesh(GLB)
+    out = gen.generate(inp, "silver metal with light dust", model, cfg, steps=1, views=4, texture_size=32,
+                       guard_energy=False)
+    reached = (out.projection.seen | out.projection.inpainted).numpy()
+    assert reached.any() and np.abs(out.prior).max() > 0.05
+    assert np.allclose(out.latents[reached], out.prior[reached], atol=2e-3)
+    fallback = gen.diffuse_fallback_latent().numpy()
+    assert np.allclose(out.latents[out.projection.fallback.numpy()], fallback, atol=2e-3)

@@ -1,11 +1,13 @@
 """EDM preconditioning, uncertainty-weighted loss, Heun sampler and the multi-view DiT on tiny sizes."""
 import math
 
+import pytest
 import torch
 
 from torch_models.generator import edm
 from torch_models.generator.dit import (CONDITION_CHANNELS, LATENT_CHANNELS, NULL_TYPE, Conditions, DitConfig,
                                         LatentGenerator)
+from torch_models.generator.views import PBR_CHANNELS, PRIOR_CHANNELS
 
 torch.set_num_threads(1)
 TINY = DitConfig(size=8, patch=4, dim=32, depth=2, heads=2, text_dim=12)
@@ -15,7 +17,9 @@ def _conditions(b: int = 1, v: int = 2, seed: int = 0) -> Conditions:
     g = torch.Generator().manual_seed(seed)
     views = torch.rand(b, v, CONDITION_CHANNELS, TINY.size, TINY.size, generator=g)
     views[:, :, -1] = (views[:, :, -1] > 0.2).float()  # coverage
-    return Conditions(views, torch.randn(b, TINY.text_dim, generator=g), torch.tensor([1] * b))
+    views[:, :, PRIOR_CHANNELS] *= views[:, :, -1:]  # the prior, like every map, is 0 on the background
+    unknown_prior = torch.rand(b, v, LATENT_CHANNELS, TINY.size, TINY.size, generator=g) * views[:, :, -1:]
+    return Conditions(views, torch.randn(b, TINY.text_dim, generator=g), torch.tensor([1] * b), unknown_prior)
 
 
 def test_preconditioning_values_at_sigma_data():
@@ -96,12 +100,42 @@ def test_prompt_dropout_and_unconditional_input():
     assert cond.unconditional().type.tolist() == [NULL_TYPE, NULL_TYPE]
 
 
+def test_dropping_the_pbr_maps_swaps_in_the_prior_made_without_them():
+    cond = _conditions(b=2)
+    dropped = cond.drop_pbr(torch.tensor([True, False]))
+    assert torch.equal(dropped.views[0], cond.views[0])
+    assert float(dropped.views[1][:, PBR_CHANNELS].abs().max()) == 0.0
+    assert torch.equal(dropped.prior[1], cond.unknown_prior[1])
+    keep = [c for c in range(CONDITION_CHANNELS) if c not in range(9, 18)]
+    assert torch.equal(dropped.views[1][:, keep], cond.views[1][:, keep])
+
+
+def test_the_model_learns_the_residual_over_the_prior():
+    """A target equal to its prior is a zero residual: the exact loss at sigma -> 0 does not depend
+    on the prior's values, and the training loss only sees target - prior."""
+    torch.manual_seed(0)
+    model = LatentGenerator(TINY)
+    cond = _conditions(b=2, v=2, seed=5)
+    residual = 0.1 * torch.randn(2, 2, LATENT_CHANNELS, TINY.size, TINY.size,
+                                 generator=torch.Generator().manual_seed(6)) * cond.views[:, :, -1:]
+    shifted = Conditions(cond.views.clone(), cond.text, cond.type, cond.unknown_prior + 0.3 * cond.views[:, :, -1:])
+    shifted.views[:, :, PRIOR_CHANNELS] += 0.3 * cond.views[:, :, -1:]
+    loss = lambda target, c: float(model(target, c, torch.Generator().manual_seed(1), drop_prob=0.0,
+                                         pbr_drop_prob=0.5).detach())
+    same_residual = loss(cond.prior + residual, cond), loss(shifted.prior + residual, shifted)
+    other_residual = loss(cond.prior + residual + 0.3 * cond.views[:, :, -1:], cond)
+    # the untrained network's output layer is zero, so only the residual target matters
+    assert same_residual[0] == pytest.approx(same_residual[1], rel=1e-5)
+    assert other_residual > same_residual[0] + 0.1
+
+
 def test_overfit_two_samples_loss_is_finite_and_falls():
     torch.manual_seed(0)
     model = LatentGenerator(TINY)
     cond = _conditions(b=2, v=2, seed=3)
     x0 = 0.5 * torch.tanh(torch.randn(2, 2, LATENT_CHANNELS, TINY.size, TINY.size,
                                       generator=torch.Generator().manual_seed(4))) * cond.views[:, :, -1:]
+    x0 = x0 + cond.prior
     opt = torch.optim.Adam(model.parameters(), lr=2e-3)
     losses = []
     for step in range(120):

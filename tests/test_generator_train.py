@@ -33,7 +33,8 @@ def test_corpus_files_hold_the_documented_tensors(tiny_config):
     files = sorted((tiny_config.parent / "corpus").glob("*.safetensors"))
     assert len(files) == 3
     s = corpus.Sample.load(files[0])
-    assert s.target.shape == (2, 6, 16, 16) and s.conditions.shape == (2, 13, 16, 16)
+    assert s.target.shape == (2, 6, 16, 16) and s.conditions.shape == (2, 19, 16, 16)
+    assert s.unknown_prior.shape == (2, 6, 16, 16)
     assert s.text.shape == (384,) and 0 <= s.type <= 5 and s.caption.startswith("a ")
     cover = s.conditions[:, -1] > 0
     assert 0 < cover.float().mean() < 1
@@ -48,6 +49,11 @@ def test_corpus_files_hold_the_documented_tensors(tiny_config):
     assert float(roughness.min()) >= float(pbr.roughness.value.min()) - 1e-3
     assert float(roughness.max()) <= float(pbr.roughness.value.max()) + 1e-3
     assert float(metalness.min()) >= float(pbr.metalness.value.min()) - 1e-3
+    # the uplift prior: the encoder's latents of the object's PBR material under the named type's
+    # rules with fixed draws; a constant-roughness dielectric when the maps are unknown
+    for prior in (s.conditions[:, 12:18], s.unknown_prior):
+        assert float(prior.abs().amax(1)[~cover].max()) == 0.0 and float(prior.abs().amax(1)[cover].min()) > 0
+    assert float((s.target - s.conditions[:, 12:18]).abs().mean()) < float(s.target.abs().mean())
 
 
 def test_learning_rate_warms_up_then_decays(tiny_config):

@@ -38,7 +38,9 @@ def both():
     cams = views.Cameras.from_record(json.loads((ASSET / "cameras.json").read_text()))
     m = ASSET / "materials" / "metal"
     latents = np.concatenate([read_exr(m / "neural" / "latent_0.exr"), read_exr(m / "neural" / "latent_1.exr")], -1)
-    ours = views.render_intrinsics(_glb_mesh(), cams, read_exr(m / "base_color.exr"), latents, supersample=4)
+    no_prior = np.zeros_like(latents)  # sample_from_views wants the two priors too; not compared here
+    ours = views.render_intrinsics(_glb_mesh(), cams, read_exr(m / "base_color.exr"),
+                                   np.concatenate([latents, no_prior, no_prior], -1), supersample=4)
     return batch, corpus.sample_from_views(batch.asset_id, batch.caption, batch.type, ours)
 
 
@@ -81,3 +83,7 @@ def test_batch_sample_carries_caption_type_and_text():
     assert s.caption == (ASSET / "caption.txt").read_text().strip()
     assert "dust" in s.caption and s.type == json.loads((ASSET / "manifest.json").read_text())["enhancement_type"]
     assert s.text.shape == (384,) and abs(float(s.text.norm()) - 1) < 1e-5
+    # batch knows no roughness or metalness: its prior is the unknown-PBR uplift, made per pixel
+    cover = s.conditions[:, -1] > 0
+    assert torch.equal(s.conditions[:, views.PRIOR_CHANNELS], s.unknown_prior)
+    assert float(s.unknown_prior.abs().amax(1)[cover].min()) > 0 and float(s.unknown_prior.abs().amax(1)[~cover].max()) == 0

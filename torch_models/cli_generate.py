@@ -1,10 +1,13 @@
 """Generate a neural material for a mesh from a text prompt (paper sec. 5.2).
 
-Renders V orbit views of the mesh's normals, positions and base colour, samples
-the 6 latent channels of every view with the trained multi-view diffusion model
-(conditioned on the views, the prompt's MiniLM embedding and the enhancement type
-its keywords name), and projects the views into the mesh's texture space. A mesh
-without UVs is unwrapped with xatlas (OUT/mesh.glb then holds the new UVs).
+Uplifts the mesh's PBR material with the enhancement rules of the type the
+prompt's keywords name (the prior), renders V orbit views of the mesh's normals,
+positions, base colour and prior, samples what the prompt's wording changes (the
+6 latent channels' residual over the prior, in every view) with the trained
+multi-view diffusion model (conditioned on the views, the prompt's MiniLM
+embedding and the type), and projects the residual into the mesh's texture space,
+over the prior. A mesh without UVs is unwrapped with xatlas (OUT/mesh.glb then
+holds the new UVs).
 
 Writes OUT/latent_0.exr and OUT/latent_1.exr (latent channels 0-2 and 3-5, the
 layout ``fit`` writes), OUT/base_color.exr, OUT/neural.json (prompt, type, seed,

@@ -1,11 +1,14 @@
 """The generator's training corpus: one safetensors file per object.
 
 A sample is an object seen from V orbit views at the working resolution:
-``target`` (V, 6, H, W) latent channels, ``conditions`` (V, 13, H, W) = world
+``target`` (V, 6, H, W) latent channels, ``conditions`` (V, 19, H, W) = world
 normal, world position, base colour, roughness, metalness, whether those two are
-known, coverage (``views.CONDITION_LAYOUT``); ``text`` (384,) the caption's
-MiniLM embedding; ``type`` the enhancement type (0-5). The caption and asset id
-ride in the file's metadata.
+known, the uplift prior's latents (``prior.py``), coverage
+(``views.CONDITION_LAYOUT``); ``unknown_prior`` (V, 6, H, W) the prior of the same
+object uplifted without its roughness and metalness (what training puts in the
+prior channels when it drops those maps); ``text`` (384,) the caption's MiniLM
+embedding; ``type`` the enhancement type (0-5). The caption and asset id ride in
+the file's metadata.
 
 Two sources feed it:
 - ``batch/`` outputs (``from_batch``): the intrinsic EXRs Cycles rendered and the
@@ -37,7 +40,8 @@ from richmat_addon.core.maps import EnhancedMaterial, ParamMap
 from richmat_addon.core.schema import PARAMS
 from . import procedural, text
 from .mesh_input import roughness_metalness
-from .views import Cameras, IntrinsicViews, orbit_cameras, render_intrinsics
+from .prior import prior_latents
+from .views import CONDITION_CHANNELS, Cameras, IntrinsicViews, orbit_cameras, render_intrinsics
 
 HELD_OUT_FRACTION = 0.1
 
@@ -54,11 +58,12 @@ class Sample:
     type: int
     target: Tensor  # (V, 6, H, W)
     conditions: Tensor  # (V, CONDITION_CHANNELS, H, W)
+    unknown_prior: Tensor  # (V, 6, H, W)
     text: Tensor  # (384,)
 
     def save(self, path: Path) -> None:
         tensors = {"target": self.target.half().contiguous(), "conditions": self.conditions.half().contiguous(),
-                   "text": self.text.float().contiguous()}
+                   "unknown_prior": self.unknown_prior.half().contiguous(), "text": self.text.float().contiguous()}
         save_file(tensors, str(path), metadata={"asset_id": self.asset_id, "caption": self.caption,
                                                 "type": str(self.type)})
 
@@ -69,8 +74,11 @@ class Sample:
         with safe_open(str(path), "pt") as f:
             meta = f.metadata()
         t = load_file(str(path))
+        if "unknown_prior" not in t or t["conditions"].shape[1] != CONDITION_CHANNELS:
+            raise ValueError(f"{path}: a corpus file of an older layout (no uplift prior); delete the corpus "
+                             "folder and let train-generator rebuild it")
         return cls(meta["asset_id"], meta["caption"], int(meta["type"]), t["target"].float(),
-                   t["conditions"].float(), t["text"])
+                   t["conditions"].float(), t["unknown_prior"].float(), t["text"])
 
 
 def pack_vectors(material: EnhancedMaterial, shape: tuple[int, int]) -> np.ndarray:
@@ -125,18 +133,23 @@ def from_procedural(index: int, cameras: Cameras, texture_size: int = 64, seed: 
     material = enhance(asset.pbr, type_, enhancement_seed(seed, index), ParamMap(asset.world_normals),
                        ParamMap(asset.world_positions))
     latents = latent_texture(material, (texture_size, texture_size), fit_steps)
-    views = render_intrinsics(asset.mesh, cameras, asset.pbr.base_color.value, latents, supersample,
-                              roughness_metalness(asset.pbr))
+    base = asset.pbr.base_color.value
+    base = base if base.ndim == 3 else base.reshape(1, 1, 3)
+    rm = roughness_metalness(asset.pbr)
+    priors = [prior_latents(base, known, type_, asset.world_normals, asset.world_positions) for known in (rm, None)]
+    views = render_intrinsics(asset.mesh, cameras, base, np.concatenate([latents, *priors], -1), supersample, rm)
     cap = caption_for(asset.shape, material, metallic)
     return sample_from_views(asset.asset_id, cap, type_, views)
 
 
 def sample_from_views(asset_id: str, caption: str, type_: int, views: IntrinsicViews) -> Sample:
-    """A sample from rendered views; pixels count as covered from half coverage on, as in ``from_batch``."""
-    assert views.latents is not None
-    inside = (views.coverage > 0.5).float()
-    target = views.latents.permute(0, 3, 1, 2) * inside[:, None]
-    return Sample(asset_id, caption, type_, target.contiguous(), views.conditions(), text.embed([caption])[0])
+    """A sample from rendered views whose latents hold the target, the prior and the unknown-PBR prior
+    (6 channels each); pixels count as covered from half coverage on, as in ``from_batch``."""
+    assert views.latents is not None and views.latents.shape[-1] == 18
+    inside = (views.coverage > 0.5).float()[:, None]
+    target, prior, unknown = (views.latents[..., k:k + 6].permute(0, 3, 1, 2) * inside for k in (0, 6, 12))
+    return Sample(asset_id, caption, type_, target.contiguous(), views.conditions(prior.permute(0, 2, 3, 1)),
+                  unknown.contiguous(), text.embed([caption])[0])
 
 
 def read_batch_passes(exr: Path) -> dict[str, np.ndarray]:
@@ -159,7 +172,9 @@ def read_batch_passes(exr: Path) -> dict[str, np.ndarray]:
 def from_batch(folder: Path) -> Sample:
     """A sample from one finished batch asset folder (passes/, caption.txt, manifest.json).
 
-    batch renders no roughness or metalness pass, so these samples say the two are unknown."""
+    batch renders no roughness or metalness pass, so these samples say the two are unknown,
+    and their prior is the unknown-PBR uplift, made per pixel of the views (batch keeps no
+    texture-space maps) from their base colour, normals and positions."""
     manifest = json.loads((folder / "manifest.json").read_text())
     frames = []
     for exr in sorted((folder / "passes").glob("*.exr")):
@@ -172,10 +187,16 @@ def from_batch(folder: Path) -> Sample:
         frames.append([normal, layers["Position"][..., :3] * unmix, layers["basecolor"][..., :3] * unmix,
                        cover[..., 0], np.concatenate([layers["latent_a"][..., :3], layers["latent_b"][..., :3]], -1)
                        * unmix])
-    normal, position, base, cover, latents = (torch.from_numpy(np.stack(m)).float() for m in zip(*frames))
-    views = IntrinsicViews(normal, position, base, cover, torch.zeros((*cover.shape, 2)), latents)
+    normal, position, base, cover, latents = (np.stack(m) for m in zip(*frames))
+    type_ = int(manifest["enhancement_type"])
+    v, h, w = cover.shape
+    flat = lambda m: m.reshape(v * h, w, -1)  # the views stacked as one image: the prior is per pixel here
+    prior = prior_latents(flat(base), None, type_, flat(normal), flat(position)).reshape(v, h, w, 6)
+    views = IntrinsicViews(*(torch.from_numpy(m).float() for m in (normal, position, base, cover)),
+                           torch.zeros((v, h, w, 2)),
+                           torch.from_numpy(np.concatenate([latents, prior, prior], -1)).float())
     cap = (folder / "caption.txt").read_text().strip()
-    return sample_from_views(manifest["asset_id"], cap, int(manifest["enhancement_type"]), views)
+    return sample_from_views(manifest["asset_id"], cap, type_, views)
 
 
 def build_procedural(out: Path, count: int, views: int, resolution: int, seed: int = 0,

@@ -3,8 +3,10 @@
 Every view of the object is cut into p x p patches; one token per patch carries
 the noisy 6 latent channels and the conditions of those pixels (world normal 3,
 world position 3, base colour 3, roughness, metalness and whether they are known,
-coverage 1: ``views.CONDITION_LAYOUT``), so the geometry sits in every
-token, as the paper concatenates its condition latents channel-wise. Attention
+the uplift prior's latents 6, coverage 1: ``views.CONDITION_LAYOUT``), so the
+geometry sits in every token, as the paper concatenates its condition latents
+channel-wise. The model denoises the residual between the object's latents and
+its uplift prior (``prior.py``): what the prompt's wording changes. Attention
 is full across all views x patches: a texel seen in two views can agree with
 itself. Tokens get a learned in-view patch position; views need no index because
 their world positions say where they are. Noise level, text embedding and the
@@ -22,7 +24,7 @@ import torch
 from torch import Tensor, nn
 
 from . import edm
-from .views import CONDITION_CHANNELS, PBR_CHANNELS
+from .views import CONDITION_CHANNELS, PBR_CHANNELS, PRIOR_CHANNELS
 
 LATENT_CHANNELS = 6
 TYPES = 6
@@ -37,6 +39,9 @@ class DitConfig:
     depth: int = 4
     heads: int = 4
     text_dim: int = 384
+    sigma_data: float = edm.SIGMA_DATA  # the residual's scale: EDM's preconditioning and loss weighting
+    p_mean: float = edm.P_MEAN  # centre of the training noise levels (ln sigma)
+    sigma_max: float = edm.SIGMA_MAX  # where sampling starts
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -122,26 +127,39 @@ class MultiViewDit(nn.Module):
 
 @dataclass
 class Conditions:
-    """What a generation is conditioned on, batched: views (B, V, CONDITION_CHANNELS, H, W), text (B, 384), type (B,)."""
+    """What a generation is conditioned on, batched: views (B, V, CONDITION_CHANNELS, H, W), text (B, 384),
+    type (B,); in training also the prior without roughness and metalness, ``unknown_prior`` (B, V, 6, H, W)."""
 
     views: Tensor
     text: Tensor
     type: Tensor
+    unknown_prior: Tensor | None = None
+
+    @property
+    def prior(self) -> Tensor:
+        """(B, V, 6, H, W) the uplift prior's latents the residual is added to."""
+        return self.views[:, :, PRIOR_CHANNELS]
 
     def unconditional(self) -> "Conditions":
-        """The same geometry with the prompt dropped (zero text, null type)."""
-        return Conditions(self.views, torch.zeros_like(self.text), torch.full_like(self.type, NULL_TYPE))
+        """The same geometry and prior with the prompt dropped (zero text, null type)."""
+        return Conditions(self.views, torch.zeros_like(self.text), torch.full_like(self.type, NULL_TYPE),
+                          self.unknown_prior)
 
     def drop(self, keep: Tensor) -> "Conditions":
         """Per-sample prompt dropout for classifier-free guidance training; keep (B,) bool."""
-        return Conditions(self.views, self.text * keep[:, None], torch.where(keep, self.type, NULL_TYPE))
+        return Conditions(self.views, self.text * keep[:, None], torch.where(keep, self.type, NULL_TYPE),
+                          self.unknown_prior)
 
     def drop_pbr(self, keep: Tensor) -> "Conditions":
-        """Per-sample dropout of the roughness and metalness maps (and their known flag), so one model
-        serves meshes that come with them and meshes that do not; keep (B,) bool."""
+        """Per-sample dropout of the roughness and metalness maps (and their known flag), with the
+        prior swapped for the one uplifted without them, so one model serves meshes that come with
+        them and meshes that do not; keep (B,) bool."""
+        assert self.unknown_prior is not None, "training conditions carry the unknown-PBR prior"
         views = self.views.clone()
-        views[:, :, PBR_CHANNELS] *= keep[:, None, None, None, None].to(views.dtype)
-        return Conditions(views, self.text, self.type)
+        kept = keep[:, None, None, None, None]
+        views[:, :, PBR_CHANNELS] *= kept.to(views.dtype)
+        views[:, :, PRIOR_CHANNELS] = torch.where(kept, views[:, :, PRIOR_CHANNELS], self.unknown_prior)
+        return Conditions(views, self.text, self.type, self.unknown_prior)
 
 
 class LatentGenerator(nn.Module):
@@ -153,33 +171,38 @@ class LatentGenerator(nn.Module):
         self.logvar = edm.LogVariance()
 
     def denoise(self, x: Tensor, sigma: Tensor, cond: Conditions) -> Tensor:
-        """x0 estimate; background pixels (coverage 0) are forced to 0, as in the data."""
-        s = edm.scalings(sigma.reshape(-1, 1, 1, 1, 1))
+        """Estimate of the clean residual; background pixels (coverage 0) are forced to 0, as in the data."""
+        s = edm.scalings(sigma.reshape(-1, 1, 1, 1, 1), self.net.cfg.sigma_data)
         f = self.net(s.c_in * x, s.c_noise.flatten(), cond.views, cond.text, cond.type)
         return (s.c_skip * x + s.c_out * f) * cond.views[:, :, -1:]
 
-    def forward(self, x0: Tensor, cond: Conditions, generator: torch.Generator, drop_prob: float = 0.1,
+    def forward(self, target: Tensor, cond: Conditions, generator: torch.Generator, drop_prob: float = 0.1,
                 pbr_drop_prob: float = 0.0) -> Tensor:
-        """The training loss (forward, so DistributedDataParallel sees it): a random noise level
-        per sample, the prompt dropped with ``drop_prob``, the roughness and metalness maps with
-        ``pbr_drop_prob``. Randomness comes from the CPU ``generator``, so a run is reproducible
-        on any device."""
-        b, dev = len(x0), x0.device
-        sigma = edm.sample_sigma(b, generator).to(dev)
-        noise = torch.randn(x0.shape, generator=generator).to(dev)
+        """The training loss (forward, so DistributedDataParallel sees it) for latent views ``target``:
+        a random noise level per sample, the prompt dropped with ``drop_prob``, the roughness and
+        metalness maps (and the prior made with them) with ``pbr_drop_prob``; the model learns the
+        residual target - prior. Randomness comes from the CPU ``generator``, so a run is
+        reproducible on any device."""
+        b, dev = len(target), target.device
+        sigma = edm.sample_sigma(b, generator, self.net.cfg.p_mean).to(dev)
+        noise = torch.randn(target.shape, generator=generator).to(dev)
         keep = (torch.rand(b, generator=generator) >= drop_prob).to(dev)
         keep_pbr = (torch.rand(b, generator=generator) >= pbr_drop_prob).to(dev)
-        x0_pred = self.denoise(x0 + sigma.reshape(-1, 1, 1, 1, 1) * noise, sigma, cond.drop(keep).drop_pbr(keep_pbr))
-        return edm.weighted_loss(x0, x0_pred, sigma, self.logvar(sigma), cond.views[:, :, -1:])
+        cond = cond.drop(keep).drop_pbr(keep_pbr)
+        x0 = target - cond.prior
+        x0_pred = self.denoise(x0 + sigma.reshape(-1, 1, 1, 1, 1) * noise, sigma, cond)
+        return edm.weighted_loss(x0, x0_pred, sigma, self.logvar(sigma), cond.views[:, :, -1:],
+                                 self.net.cfg.sigma_data)
 
     @torch.no_grad()
     def sample(self, cond: Conditions, steps: int, seed: int, guidance: float = 1.0,
                progress: Callable[[int, int], None] | None = None) -> Tensor:
-        """Latent views (B, V, 6, H, W) for the conditions, deterministic per seed."""
+        """Residual latent views (B, V, 6, H, W) for the conditions, deterministic per seed: the
+        object's latents are ``cond.prior`` plus these."""
         b, v, _, h, w = cond.views.shape
         noise = torch.randn((b, v, LATENT_CHANNELS, h, w),
                             generator=torch.Generator().manual_seed(seed)).to(cond.views.device)
         uncond = cond.unconditional()
         denoise = edm.guided(lambda x, s: self.denoise(x, s, cond), lambda x, s: self.denoise(x, s, uncond),
                              guidance)
-        return edm.heun_sample(denoise, noise, steps, progress)
+        return edm.heun_sample(denoise, noise, steps, progress, self.net.cfg.sigma_max)

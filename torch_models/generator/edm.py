@@ -42,9 +42,9 @@ def loss_weight(sigma: Tensor, sigma_data: float = SIGMA_DATA) -> Tensor:
     return (sigma ** 2 + sigma_data ** 2) / (sigma * sigma_data) ** 2
 
 
-def sample_sigma(n: int, generator: torch.Generator | None = None) -> Tensor:
-    """Training noise levels, log-normal around exp(-1.2)."""
-    return (P_MEAN + P_STD * torch.randn(n, generator=generator)).exp()
+def sample_sigma(n: int, generator: torch.Generator | None = None, p_mean: float = P_MEAN) -> Tensor:
+    """Training noise levels, log-normal around exp(p_mean)."""
+    return (p_mean + P_STD * torch.randn(n, generator=generator)).exp()
 
 
 class FourierFeatures(nn.Module):
@@ -76,7 +76,8 @@ class LogVariance(nn.Module):
 Denoiser = Callable[[Tensor, Tensor], Tensor]  # (x_noisy, sigma) -> x0 estimate
 
 
-def weighted_loss(x0: Tensor, x0_pred: Tensor, sigma: Tensor, logvar: Tensor, mask: Tensor) -> Tensor:
+def weighted_loss(x0: Tensor, x0_pred: Tensor, sigma: Tensor, logvar: Tensor, mask: Tensor,
+                  sigma_data: float = SIGMA_DATA) -> Tensor:
     """Mean over the batch of lambda(sigma) * masked MSE / exp(u) + u.
 
     x0, x0_pred: (B, ...); mask broadcastable to them (1 where the object is), so the
@@ -84,7 +85,7 @@ def weighted_loss(x0: Tensor, x0_pred: Tensor, sigma: Tensor, logvar: Tensor, ma
     """
     mask = mask.expand_as(x0)
     err = ((x0_pred - x0) ** 2 * mask).flatten(1).sum(1) / mask.flatten(1).sum(1).clamp(min=1.0)
-    return (loss_weight(sigma) * err * torch.exp(-logvar) + logvar).mean()
+    return (loss_weight(sigma, sigma_data) * err * torch.exp(-logvar) + logvar).mean()
 
 
 def karras_sigmas(steps: int, sigma_min: float = SIGMA_MIN, sigma_max: float = SIGMA_MAX,
@@ -105,11 +106,11 @@ def guided(cond: Denoiser, uncond: Denoiser, scale: float) -> Denoiser:
 
 @torch.no_grad()
 def heun_sample(denoise: Denoiser, noise: Tensor, steps: int,
-                progress: Callable[[int, int], None] | None = None) -> Tensor:
+                progress: Callable[[int, int], None] | None = None, sigma_max: float = SIGMA_MAX) -> Tensor:
     """Deterministic EDM sampler (Karras et al. 2022, Alg. 1): Euler step plus Heun correction
     except into sigma = 0. ``noise`` is unit Gaussian; it is scaled to sigma_max here.
     ``progress(step, steps)`` is called after each step (the add-on's progress bar)."""
-    sigmas = karras_sigmas(steps).to(noise.dtype)
+    sigmas = karras_sigmas(steps, sigma_max=sigma_max).to(noise.dtype)
     x = noise * sigmas[0]
     for k in range(steps):
         s, s_next = sigmas[k], sigmas[k + 1]

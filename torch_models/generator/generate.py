@@ -1,4 +1,5 @@
-"""Text + mesh -> neural material: condition views, diffusion sampling, projection to texture space."""
+"""Text + mesh -> neural material: uplift prior, condition views, diffusion sampling of the residual,
+projection to texture space."""
 from __future__ import annotations
 
 import json
@@ -18,6 +19,7 @@ from richmat_addon.core.uv_raster import rasterize as uv_rasterize
 from . import DEFAULT_STEPS, DEFAULT_VIEWS, text
 from .dit import Conditions, LatentGenerator
 from .mesh_input import MeshInput
+from .prior import prior_latents
 from .projection import Projection, project
 from .train import GeneratorTrainConfig
 from .views import IntrinsicViews, orbit_cameras, render_intrinsics
@@ -65,7 +67,8 @@ def diffuse_fallback_latent() -> Tensor:
 @dataclass
 class Generation:
     latents: np.ndarray  # (H, W, 6) texture
-    views: Tensor  # (V, 6, h, w) the sampled latent views the texture was projected from
+    prior: np.ndarray  # (H, W, 6) the uplift prior the residual was added to (prior.py)
+    views: Tensor  # (V, 6, h, w) the sampled latent views (prior + residual) the texture was made from
     projection: Projection
     charts: Tensor
     type: int
@@ -90,28 +93,33 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     times: dict[str, float] = {}
     t0 = time.perf_counter()
     type_, warnings = prompt_type(prompt, metallic=inp.metallic)
+    raster, reason = uv_rasterize(inp.mesh.positions, inp.mesh.normals, inp.mesh.uvs, inp.mesh.faces,
+                                  (texture_size, texture_size))
+    if raster is None:
+        raise ValueError(f"cannot project into the mesh's texture space: {reason}")
+    charts = torch.from_numpy(raster.coverage)
+    prior = prior_latents(inp.base_color, inp.roughness_metalness, type_, raster.normals, raster.positions)
     res = cfg.model.size
     cams = orbit_cameras(views, res)
-    cond_views = render_intrinsics(inp.mesh, cams, inp.base_color, supersample=cfg.corpus.supersample,
-                                   roughness_metalness=inp.roughness_metalness)
-    cond = Conditions(cond_views.conditions()[None], text.embed([prompt]), torch.tensor([type_]))
+    cond_views = render_intrinsics(inp.mesh, cams, inp.base_color, prior, cfg.corpus.supersample,
+                                   inp.roughness_metalness)
+    cond = Conditions(cond_views.conditions(cond_views.latents)[None], text.embed([prompt]), torch.tensor([type_]))
     times["condition_views"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    generated = model.sample(cond, steps, seed, guidance, progress)[0].clamp(-1.0, 1.0)  # the encoder's latent box
+    residual = model.sample(cond, steps, seed, guidance, progress)[0]
     times["sampling"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     fine_cams = orbit_cameras(views, res * PROJECTION_UPSAMPLE)
     fine = render_intrinsics(inp.mesh, fine_cams, inp.base_color)
-    values = _upsample(generated.permute(0, 2, 3, 1), cond_views.coverage, PROJECTION_UPSAMPLE)
-    raster, reason = uv_rasterize(inp.mesh.positions, inp.mesh.normals, inp.mesh.uvs, inp.mesh.faces,
-                                  (texture_size, texture_size), padding=0)
-    if raster is None:
-        raise ValueError(f"cannot project into the mesh's texture space: {reason}")
-    charts = torch.from_numpy(raster.coverage)
-    proj = project(values * (fine.coverage > 0.5)[..., None], fine, fine_cams, charts, diffuse_fallback_latent())
+    values = _upsample(residual.permute(0, 2, 3, 1), cond_views.coverage, PROJECTION_UPSAMPLE)
+    prior_texture = torch.from_numpy(prior)
+    # islands no view saw end on the diffuse fallback: their residual is fallback - prior
+    proj = project(values * (fine.coverage > 0.5)[..., None], fine, fine_cams, charts,
+                   diffuse_fallback_latent() - prior_texture)
     times["projection"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    texture = proj.texture.numpy().astype(np.float16).astype(np.float32)  # as the half-float EXRs hold it
+    texture = (prior_texture + proj.texture).clamp(-1.0, 1.0)  # the encoder's latent box
+    texture = texture.numpy().astype(np.float16).astype(np.float32)  # as the half-float EXRs hold it
     energy = energy_guard(texture) if guard_energy else np.ones(texture.shape[:2], np.float32)
     times["energy_guard"] = time.perf_counter() - t0
     stats = proj.stats(charts)
@@ -121,7 +129,8 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     if stats["seen"] < SEEN_WARNING:
         warnings.append(f"only {stats['seen']:.0%} of the texels were seen squarely by a view (thin parts, many "
                         "small UV islands or hidden surfaces): the rest is inpainted from their neighbours")
-    return Generation(texture, generated, proj, charts, type_, energy, warnings, times)
+    generated = (cond.prior[0] + residual).clamp(-1.0, 1.0)
+    return Generation(texture, prior, generated, proj, charts, type_, energy, warnings, times)
 
 
 def energy_guard(latents: np.ndarray) -> np.ndarray:

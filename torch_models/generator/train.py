@@ -87,9 +87,10 @@ def load_corpus(cfg: CorpusConfig, progress: bool = True) -> list[corpus.Sample]
     return samples
 
 
-def _stack(samples: list[corpus.Sample]) -> tuple[Tensor, Tensor, Tensor, Tensor]:
+def _stack(samples: list[corpus.Sample]) -> tuple[Tensor, Tensor, Tensor, Tensor, Tensor]:
     return (torch.stack([s.target for s in samples]), torch.stack([s.conditions for s in samples]),
-            torch.stack([s.text for s in samples]), torch.tensor([s.type for s in samples]))
+            torch.stack([s.text for s in samples]), torch.tensor([s.type for s in samples]),
+            torch.stack([s.unknown_prior for s in samples]))
 
 
 class GeneratorTrainer:
@@ -102,7 +103,7 @@ class GeneratorTrainer:
         train = [s for s in samples if not corpus.is_held_out(s.asset_id)]
         if not train:
             raise ValueError("the corpus has no training objects")
-        self.target, self.cond, self.text, self.type = (t.to(self.device) for t in _stack(train))
+        self.target, self.cond, self.text, self.type, self.unknown_prior = (t.to(self.device) for t in _stack(train))
         torch.manual_seed(cfg.seed)
         self.model = LatentGenerator(cfg.model).to(self.device)
         self.module = data_parallel(self.model, where)
@@ -154,7 +155,7 @@ class GeneratorTrainer:
         cfg = self.cfg
         gen = torch.Generator().manual_seed((cfg.seed * 1_000_003 + self.step) * 64 + self.rank)
         idx = torch.randint(len(self.target), (cfg.batch,), generator=gen).to(self.device)
-        cond = Conditions(self.cond[idx], self.text[idx], self.type[idx])
+        cond = Conditions(self.cond[idx], self.text[idx], self.type[idx], self.unknown_prior[idx])
         for group in self.opt.param_groups:
             group["lr"] = learning_rate(cfg, self.step)
         loss = self.module(self.target[idx], cond, gen, cfg.drop_prob, cfg.pbr_drop_prob)

@@ -187,8 +187,9 @@ class IntrinsicViews:
     latents: Tensor | None
     roughness_metalness: Tensor | None = None
 
-    def conditions(self) -> Tensor:
-        """The generator's condition channels (V, CONDITION_CHANNELS, H, W), in ``CONDITION_LAYOUT`` order.
+    def conditions(self, prior: Tensor) -> Tensor:
+        """The generator's condition channels (V, CONDITION_CHANNELS, H, W), in ``CONDITION_LAYOUT`` order;
+        ``prior`` (V, H, W, 6) is the uplift prior's latents as these views see them (``prior.py``).
 
         Pixels below half coverage count as background: their maps are 0 and their
         coverage channel is 0 (1 inside), as the denoiser's output mask expects."""
@@ -197,14 +198,15 @@ class IntrinsicViews:
             pbr = torch.zeros((*self.coverage.shape, 3))
         else:
             pbr = torch.cat([self.roughness_metalness, torch.ones((*self.coverage.shape, 1))], -1)
-        maps = torch.cat([self.normals, self.positions, self.base_color, pbr], -1) * inside
+        maps = torch.cat([self.normals, self.positions, self.base_color, pbr, prior], -1) * inside
         return torch.cat([maps, inside], -1).permute(0, 3, 1, 2).contiguous()
 
 
 CONDITION_LAYOUT = (("normal", 3), ("position", 3), ("base_color", 3), ("roughness", 1), ("metalness", 1),
-                    ("pbr_known", 1), ("coverage", 1))
+                    ("pbr_known", 1), ("prior", 6), ("coverage", 1))
 CONDITION_CHANNELS = sum(c for _, c in CONDITION_LAYOUT)
 PBR_CHANNELS = slice(9, 12)  # roughness, metalness, pbr_known: zeroed together where the maps are unknown
+PRIOR_CHANNELS = slice(12, 18)  # the uplift prior's latents; swapped for the unknown-PBR prior with the maps
 
 
 def render_intrinsics(mesh: Mesh, cameras: Cameras, base_color: np.ndarray,

@@ -1,0 +1,59 @@
+"""The uplift prior: the procedural enhancement that the generator refines.
+
+The enhancement rules (``core.enhance``) already turn a mesh's PBR material into a
+plausible enhanced one of the type the prompt names; what they cannot read is the
+prompt's wording ("light dust", "thick glossy coat"), so they draw their settings.
+The generator starts from that uplift, with fixed draws (``PRIOR_SEED``), and
+learns only the residual the caption calls for: its input views carry the prior's
+latents, its target is reference minus prior, and ``generate`` adds the projected
+residual to the prior texture, which is exact at every texel (no view blur).
+
+A mesh without roughness and metalness maps is uplifted as a dielectric of
+roughness ``UNKNOWN_ROUGHNESS``; training sees that prior whenever it drops the two
+maps, so one model serves both kinds of input.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from richmat_addon.core.enhance import enhance, resolve_type
+from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
+
+PRIOR_SEED = 2 ** 40  # far from every corpus object's own draws (corpus.enhancement_seed)
+PRIOR_NAME = "richmat-prior"  # the draws depend on the material's name: one fixed name, whatever the file says
+UNKNOWN_ROUGHNESS = 0.5
+
+
+def resize_nearest(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """(h, w, C) image at ``size`` by nearest texel; a (1, 1, C) constant stays constant."""
+    if image.shape[:2] in (size, (1, 1)):
+        return image
+    rows = np.arange(size[0]) * image.shape[0] // size[0]
+    cols = np.arange(size[1]) * image.shape[1] // size[1]
+    return image[rows][:, cols]
+
+
+def prior_material(base_color: np.ndarray, roughness_metalness: np.ndarray | None, type_: int,
+                   normals: np.ndarray, positions: np.ndarray) -> EnhancedMaterial:
+    """The enhanced material the prior encodes. Maps are (H, W, C) texture-space images (constants
+    (1, 1, C)); ``roughness_metalness`` None means unknown."""
+    size = normals.shape[:2]
+    as_map = lambda image: ParamMap(resize_nearest(image, size).astype(np.float32)) \
+        if image.shape[:2] != (1, 1) else ParamMap.constant(*image.reshape(-1))
+    if roughness_metalness is None:
+        rough, metal = ParamMap.constant(UNKNOWN_ROUGHNESS), ParamMap.constant(0.0)
+    else:
+        rough, metal = as_map(roughness_metalness[..., :1]), as_map(roughness_metalness[..., 1:2])
+    pbr = PbrInputs(PRIOR_NAME, as_map(base_color), rough, metal)
+    resolved, _ = resolve_type(pbr, type_, PRIOR_SEED)  # a dielectric-only type on a metal: its metal twin
+    return enhance(pbr, resolved, PRIOR_SEED, ParamMap(normals.astype(np.float32)),
+                   ParamMap(positions.astype(np.float32)))
+
+
+def prior_latents(base_color: np.ndarray, roughness_metalness: np.ndarray | None, type_: int,
+                  normals: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """(H, W, 6) the shipped encoder's latents of the prior material, at the normals' texture size."""
+    from .corpus import latent_texture
+
+    material = prior_material(base_color, roughness_metalness, type_, normals, positions)
+    return latent_texture(material, normals.shape[:2])
