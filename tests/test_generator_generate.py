@@ -198,3 +198,16 @@ def test_a_zero_residual_gives_back_the_uplift_prior(checkpoint, monkeypatch):
     assert np.allclose(out.latents[reached], out.prior[reached], atol=2e-3)
     fallback = gen.diffuse_fallback_latent().numpy()
     assert np.allclose(out.latents[out.projection.fallback.numpy()], fallback, atol=2e-3)
+
+
+def test_the_default_texture_follows_the_base_colour_up_to_the_guards_budget():
+    from torch_models.generator import DEFAULT_TEXTURE_SIZE
+    from torch_models.generator.generate import default_texture_size
+    from torch_models.generator.mesh_input import MeshInput
+
+    def size(base_shape: tuple[int, int]) -> int:
+        return default_texture_size(MeshInput(None, np.zeros((*base_shape, 3), np.float32), True))
+
+    assert size((16, 16)) == 16 and size((16, 32)) == 32  # bake at the input's resolution
+    assert size((1, 1)) == DEFAULT_TEXTURE_SIZE and size((2048, 2048)) == DEFAULT_TEXTURE_SIZE
+    assert size((4, 4)) == 8

@@ -27,7 +27,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .generator import DEFAULT_STEPS, DEFAULT_VIEWS
+from .generator import DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS
 
 HELP = "generate the latent textures of a neural material for a mesh from a text prompt"
 
@@ -42,7 +42,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--views", type=int, default=DEFAULT_VIEWS,
                         help=f"orbit views generated (default: {DEFAULT_VIEWS})")
     parser.add_argument("--guidance", type=float, default=2.0, help="classifier-free guidance scale (default: 2)")
-    parser.add_argument("--texture-size", type=int, default=64, help="latent texture size in texels (default: 64)")
+    parser.add_argument("--texture-size", type=int, default=None,
+                        help=f"latent texture size in texels (default: the base colour texture's size, at most "
+                             f"{DEFAULT_TEXTURE_SIZE}: the energy guard's cost grows with the texels)")
     parser.add_argument("--checkpoint", type=Path, default=None,
                         help="a train-generator run folder (default: the shipped generator)")
     parser.add_argument("--no-preview", action="store_true", help="skip the preview render")
@@ -70,13 +72,15 @@ def run(args: argparse.Namespace) -> int:
     try:
         if not args.mesh.is_file():
             raise InputError(f"{args.mesh}: no such file")
-        if args.steps < 1 or args.views < 1 or args.texture_size < 8:
+        if args.steps < 1 or args.views < 1 or (args.texture_size is not None and args.texture_size < 8):
             raise InputError("--steps and --views must be >= 1 and --texture-size >= 8")
         model, cfg = gen.load_generator(args.checkpoint or gen.SHIPPED)
         inp = load_mesh(args.mesh)
         if args.material is not None:
             use_baked_material(inp, args.material)
         decoder = weights.load()
+        if args.texture_size is None:
+            args.texture_size = gen.default_texture_size(inp)
     except (InputError, FileNotFoundError, ValueError, KeyError) as exc:
         if jsonl:
             emit("error", message=str(exc))

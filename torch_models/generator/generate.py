@@ -16,7 +16,7 @@ from torch import Tensor
 from richmat_addon.core.maps import PbrInputs, ParamMap
 from richmat_addon.core.prompt import prompt_type
 from richmat_addon.core.uv_raster import rasterize as uv_rasterize
-from . import DEFAULT_STEPS, DEFAULT_VIEWS, text
+from . import DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, text
 from .dit import Conditions, LatentGenerator
 from .mesh_input import MeshInput
 from .prior import prior_latents
@@ -85,8 +85,15 @@ def _upsample(values: Tensor, coverage: Tensor, factor: int) -> Tensor:
     return (num / den.clamp(min=1e-6)).permute(0, 2, 3, 1)
 
 
+def default_texture_size(inp: MeshInput) -> int:
+    """The latent texture's side: the base colour texture's, at most ``DEFAULT_TEXTURE_SIZE`` (the
+    energy guard measures every distinct texel), and ``DEFAULT_TEXTURE_SIZE`` for a constant colour."""
+    side = max(inp.base_color.shape[:2])
+    return DEFAULT_TEXTURE_SIZE if side == 1 else max(8, min(side, DEFAULT_TEXTURE_SIZE))
+
+
 def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: GeneratorTrainConfig, seed: int = 0,
-             steps: int = DEFAULT_STEPS, views: int = DEFAULT_VIEWS, guidance: float = 2.0, texture_size: int = 64,
+             steps: int = DEFAULT_STEPS, views: int = DEFAULT_VIEWS, guidance: float = 2.0, texture_size: int = DEFAULT_TEXTURE_SIZE,
              progress: Callable[[int, int], None] | None = None, guard_energy: bool = True) -> Generation:
     """The latent texture of ``inp`` for ``prompt``; ``progress(step, steps)`` follows the sampling.
     ``guard_energy`` False skips the energy guard (its scale map is then all 1)."""
