@@ -11,7 +11,7 @@ from torch_models.cli import main
 def test_demo_writes_types_neural_comparison_and_generated_materials(tmp_path: Path) -> None:
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--size", "8", "--resolution", "16", "--spp", "2",
-                 "--fit-steps", "1"]) == 0
+                 "--fit-steps", "1", "--generate-size", "16"]) == 0
     for k in range(6):
         assert (out / f"type_{k}" / "params.json").is_file() and (out / f"type_{k}" / "material.mtlx").is_file()
         assert (out / f"type_{k}" / "neural" / "latent_0.exr").is_file()
