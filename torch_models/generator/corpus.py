@@ -39,7 +39,7 @@ from richmat_addon.core.enhance import enhance, is_metallic
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
 from richmat_addon.core.schema import PARAMS
 from . import procedural, text
-from .mesh_input import roughness_metalness
+from .mesh_input import MeshInput
 from .prior import prior_latents
 from .views import CONDITION_CHANNELS, Cameras, IntrinsicViews, orbit_cameras, render_intrinsics
 
@@ -133,11 +133,12 @@ def from_procedural(index: int, cameras: Cameras, texture_size: int = 64, seed: 
     material = enhance(asset.pbr, type_, enhancement_seed(seed, index), ParamMap(asset.world_normals),
                        ParamMap(asset.world_positions))
     latents = latent_texture(material, (texture_size, texture_size), fit_steps)
-    base = asset.pbr.base_color.value
-    base = base if base.ndim == 3 else base.reshape(1, 1, 3)
-    rm = roughness_metalness(asset.pbr)
-    priors = [prior_latents(base, known, type_, asset.world_normals, asset.world_positions) for known in (rm, None)]
-    views = render_intrinsics(asset.mesh, cameras, base, np.concatenate([latents, *priors], -1), supersample, rm)
+    inp = MeshInput.from_pbr(asset.mesh, asset.pbr)
+    rm = inp.roughness_metalness
+    priors = [prior_latents(inp.base_color, known, type_, asset.world_normals, asset.world_positions)
+              for known in (rm, None)]
+    views = render_intrinsics(asset.mesh, cameras, inp.base_color, np.concatenate([latents, *priors], -1),
+                              supersample, rm)
     cap = caption_for(asset.shape, material, metallic)
     return sample_from_views(asset.asset_id, cap, type_, views)
 

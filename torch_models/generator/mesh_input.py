@@ -45,20 +45,21 @@ def _image_shape(value: np.ndarray) -> tuple[int, int, int]:
     return value.shape if value.ndim == 3 else (1, 1, value.shape[-1])
 
 
+def resize_nearest(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """(h, w, C) image at ``size`` by nearest texel; a (1, 1, C) constant stays constant."""
+    if image.shape[:2] in (size, (1, 1)):
+        return image
+    rows = np.arange(size[0]) * image.shape[0] // size[0]
+    cols = np.arange(size[1]) * image.shape[1] // size[1]
+    return image[rows][:, cols]
+
+
 def stack_maps(roughness: np.ndarray, metalness: np.ndarray) -> np.ndarray:
     """(H, W, 2) from two single-channel images (H, W, 1) or (1, 1, 1); a smaller texture is
     resampled (nearest) to the larger one's size."""
-    shapes = [m.shape[:2] for m in (roughness, metalness)]
-    h, w = max(shapes, key=lambda s: s[0] * s[1])
-
-    def resize(m: np.ndarray) -> np.ndarray:
-        if m.shape[:2] in ((h, w), (1, 1)):
-            return np.broadcast_to(m, (h, w, 1))
-        rows = np.arange(h) * m.shape[0] // h
-        cols = np.arange(w) * m.shape[1] // w
-        return m[rows][:, cols]
-
-    return np.concatenate([resize(roughness), resize(metalness)], -1).astype(np.float32)
+    size = max((m.shape[:2] for m in (roughness, metalness)), key=lambda s: s[0] * s[1])
+    resized = [np.broadcast_to(resize_nearest(m, size), (*size, 1)) for m in (roughness, metalness)]
+    return np.concatenate(resized, -1).astype(np.float32)
 
 
 def roughness_metalness(pbr: PbrInputs) -> np.ndarray:

@@ -18,19 +18,11 @@ import numpy as np
 
 from richmat_addon.core.enhance import enhance, resolve_type
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
+from .mesh_input import resize_nearest
 
 PRIOR_SEED = 2 ** 40  # far from every corpus object's own draws (corpus.enhancement_seed)
 PRIOR_NAME = "richmat-prior"  # the draws depend on the material's name: one fixed name, whatever the file says
 UNKNOWN_ROUGHNESS = 0.5
-
-
-def resize_nearest(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """(h, w, C) image at ``size`` by nearest texel; a (1, 1, C) constant stays constant."""
-    if image.shape[:2] in (size, (1, 1)):
-        return image
-    rows = np.arange(size[0]) * image.shape[0] // size[0]
-    cols = np.arange(size[1]) * image.shape[1] // size[1]
-    return image[rows][:, cols]
 
 
 def prior_material(base_color: np.ndarray, roughness_metalness: np.ndarray | None, type_: int,
@@ -38,8 +30,12 @@ def prior_material(base_color: np.ndarray, roughness_metalness: np.ndarray | Non
     """The enhanced material the prior encodes. Maps are (H, W, C) texture-space images (constants
     (1, 1, C)); ``roughness_metalness`` None means unknown."""
     size = normals.shape[:2]
-    as_map = lambda image: ParamMap(resize_nearest(image, size).astype(np.float32)) \
-        if image.shape[:2] != (1, 1) else ParamMap.constant(*image.reshape(-1))
+
+    def as_map(image: np.ndarray) -> ParamMap:
+        if image.shape[:2] == (1, 1):
+            return ParamMap.constant(*image.reshape(-1))
+        return ParamMap(resize_nearest(image, size).astype(np.float32))
+
     if roughness_metalness is None:
         rough, metal = ParamMap.constant(UNKNOWN_ROUGHNESS), ParamMap.constant(0.0)
     else:
