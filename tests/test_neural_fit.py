@@ -155,6 +155,13 @@ def test_furnace_repair_scales_only_what_fails() -> None:
                          transmissions=torch.tensor([[0.2, 0.2]]), quadrature=torch.tensor([[2.6, 0.6]]))
     assert narrow.failing.tolist() == [True] and float(narrow.albedo[0]) == pytest.approx(2.6)
     assert float(narrow.energy_scale()[0]) == pytest.approx(0.8 / 2.4, abs=fit.SCALE_STEP)
+    # without the margin, a lobe the quadrature puts 1 % over the bound loses that 1 %, not the
+    # Monte Carlo error bar's 6 %; where Monte Carlo itself fails, its point estimate counts
+    at_bound = fit.Furnace(albedos=torch.tensor([[1.0], [1.2]]), std_errors=torch.full((2, 1), 0.02),
+                           transmissions=torch.full((2, 1), 0.5), quadrature=torch.tensor([[1.01], [1.01]]))
+    assert at_bound.energy_scale(margin=False).tolist() == pytest.approx([0.5 / 0.51, 0.5 / 0.7],
+                                                                         abs=fit.SCALE_STEP)
+    assert at_bound.energy_scale().tolist() == pytest.approx([0.5 / 0.56, 0.5 / 0.76], abs=fit.SCALE_STEP)
 
 
 def test_furnace_recheck_of_repaired_latents_passes(tiny_weights: Path) -> None:

@@ -41,6 +41,8 @@ def test_furnace_flags_and_repairs_energy_gain(tiny_weights: Path) -> None:  # n
     assert not fit.furnace(model, z, n=2048, seed=9, energy_scale=scale).failing.any()
     guarded = fit.guard(model, z)
     assert (guarded <= 1 / 1.5).all() and not fit.furnace(model, z, n=2048, seed=11, energy_scale=guarded).failing.any()
+    # repaired to the point estimate and checked again: no darker than one repair with the error bar
+    assert (guarded >= scale).all() and float(guarded.min()) > 1 / 1.5 - 0.02, guarded
 
 
 def test_half_vector_grid_resolves_a_near_mirror_lobe() -> None:
