@@ -20,12 +20,10 @@ fresh furnace estimate; the share before the guard is reported beside it. The
 generated material is rendered with the scale map, as the add-on's preview does. CLIP-FID, CMMD and LPIPS need weights that
 cannot be downloaded here; they are skipped (noted in the output).
 
-Writes docs/generate_eval[_seedS].json and .png (PSNR and FLIP per method) and,
-with --gallery, docs/generate_gallery.png: per object its PBR input, the
-reference, the generation from its caption, then the same object generated from
-prompts naming other enhancements.
+Writes docs/generate_eval[_seedS].json and .png (PSNR and FLIP per method); the
+gallery of generated materials is bench/generate_gallery.py.
 
-    .venv/bin/python bench/generate_eval.py [--seed S] [--checkpoint DIR] [--objects N] [--gallery]
+    .venv/bin/python bench/generate_eval.py [--seed S] [--checkpoint DIR] [--objects N]
 """
 from __future__ import annotations
 
@@ -33,7 +31,6 @@ import argparse
 import json
 import math
 import sys
-import textwrap
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -57,9 +54,6 @@ from torch_models.render.tonemap import agx  # noqa: E402
 
 SKIPPED_METRICS = "CLIP-FID, CMMD, LPIPS: skipped (their network weights are not available offline)"
 METHODS = ("generated", "pbr", "procedural", "retrieval")
-# Other enhancements for the gallery, in the captions' own words (Type 0, 1, 2, 4).
-GALLERY_ENDINGS = ("light haze", "heavy haze, heavy dust", "light haze, glossy clearcoat",
-                   "moderate haze, heavy fuzz, light subsurface scattering")
 
 
 @dataclass
@@ -192,40 +186,6 @@ def chart(report: dict, path: Path) -> None:
     plt.close(fig)
 
 
-def gallery(objects: list[HeldOut], model: LatentGenerator, cfg: GeneratorTrainConfig, args: argparse.Namespace,
-            path: Path) -> None:
-    """Rows: objects; columns: PBR input, reference, generated from the caption, generated from other prompts."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    size, res, spp = cfg.corpus.texture_size, 160, 32  # one view per cell: afford a clean render
-    fig, axes = plt.subplots(len(objects), 3 + len(GALLERY_ENDINGS),
-                             figsize=(2.0 * (3 + len(GALLERY_ENDINGS)), 2.25 * len(objects)), squeeze=False)
-    for row, obj in zip(axes, objects):
-        subject = obj.prompt.split(" with ")[0]
-        generated = [(obj.prompt.split(" with ")[-1], obj.prompt)]
-        generated += [(ending, f"{subject} with {ending}") for ending in GALLERY_ENDINGS]
-        cells = [("PBR input", latents_of(baseline(obj.asset.pbr), size), None),
-                 ("reference", latents_of(obj.material, size), None)]
-        for ending, prompt in generated:
-            result = gen.generate(obj.inp, prompt, model, cfg, args.seed, args.steps, args.views, args.guidance, size)
-            cells.append(("generated:\n" + ending, result.latents, result.energy_scale))
-        images = [render(obj.inp, lat, 1, res, spp, scale)[0] for _, lat, scale in cells]
-        ys, xs = np.nonzero(images[1].sum(-1) > 0)  # crop every cell to the object in the reference
-        crop = (slice(max(ys.min() - 4, 0), ys.max() + 5), slice(max(xs.min() - 4, 0), xs.max() + 5))
-        for ax, (title, _, _), image in zip(row, cells, images):
-            ax.imshow(image[crop])
-            ax.set_title("\n".join(textwrap.fill(line, 30) for line in title.split("\n")), fontsize=6.5)
-            ax.axis("off")
-        row[0].text(-0.05, 0.5, subject.replace(": ", ":\n"), transform=row[0].transAxes, fontsize=7,
-                    ha="right", va="center")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-
-
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0, help="sampling seed")
@@ -237,7 +197,6 @@ def main() -> int:
     ap.add_argument("--guidance", type=float, default=2.0)
     ap.add_argument("--resolution", type=int, default=64, help="evaluation render size")
     ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--gallery", type=int, default=0, metavar="N", help="also draw the gallery of N objects")
     ap.add_argument("--out", type=Path, default=None, help="report JSON (default: docs/generate_eval[_seedS].json)")
     args = ap.parse_args()
     torch.set_num_threads(1)
@@ -268,8 +227,6 @@ def main() -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(report, indent=1))
     chart(report, out.with_suffix(".png"))
-    if args.gallery:
-        gallery(objects[:args.gallery], model, cfg, args, out.parent / "generate_gallery.png")
     print(json.dumps({k: report[k] for k in ("overall", "invalid_generated_texels", "targets")}, indent=1))
     print(SKIPPED_METRICS)
     return 0

@@ -96,7 +96,8 @@ def measure(mesh: Mesh, base: np.ndarray, prompt: str, model: LatentGenerator, c
             steps: int, views: int) -> dict:
     """Projection shares, round-trip error and warnings of one generation."""
     inp = MeshInput(mesh, base.reshape(1, 1, 3).astype(np.float32), True)
-    result = gen.generate(inp, prompt, model, cfg, 0, steps, views, texture_size=cfg.corpus.texture_size)
+    result = gen.generate(inp, prompt, model, cfg, 0, steps, views, texture_size=cfg.corpus.texture_size,
+                          guard_energy=False)  # the guard scales f_neu; it changes no latent measured here
     cams = orbit_cameras(views, cfg.model.size)
     again = render_intrinsics(mesh, cams, inp.base_color, result.latents, cfg.corpus.supersample)
     covered = (again.coverage > 0.5)[..., None]
