@@ -43,7 +43,7 @@ sys.path.insert(0, str(REPO))
 
 from richmat_addon.core.enhance import baseline, enhance, is_metallic  # noqa: E402
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap  # noqa: E402
-from torch_models.generator import DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural, text  # noqa: E402
+from torch_models.generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural, text  # noqa: E402
 from torch_models.generator import generate as gen  # noqa: E402
 from torch_models.generator.dit import LatentGenerator  # noqa: E402
 from torch_models.generator.mesh_input import MeshInput  # noqa: E402
@@ -140,7 +140,8 @@ def evaluate(obj: HeldOut, model: LatentGenerator, cfg: GeneratorTrainConfig, ar
     """PSNR/FLIP of the generation and the baselines against the reference, for one object."""
     size = cfg.corpus.texture_size
     t0, c0 = time.perf_counter(), time.process_time()
-    result = gen.generate(obj.inp, obj.prompt, model, cfg, args.seed, args.steps, args.views, args.guidance, size)
+    result = gen.generate(obj.inp, obj.prompt, model, cfg, args.seed, args.steps, args.views, args.guidance, size,
+                          samples=args.samples)
     seconds, cpu_seconds = time.perf_counter() - t0, time.process_time() - c0
     a = obj.asset
     raw_invalid, invalid = invalid_share(result.latents, result.energy_scale)
@@ -194,6 +195,7 @@ def main() -> int:
     ap.add_argument("--views", type=int, default=DEFAULT_VIEWS, help="views generated")
     ap.add_argument("--eval-views", type=int, default=16, help="views rendered for the metrics")
     ap.add_argument("--steps", type=int, default=DEFAULT_STEPS)
+    ap.add_argument("--samples", type=int, default=DEFAULT_SAMPLES, help="samples averaged per object")
     ap.add_argument("--guidance", type=float, default=2.0)
     ap.add_argument("--resolution", type=int, default=64, help="evaluation render size")
     ap.add_argument("--spp", type=int, default=16)
@@ -214,7 +216,8 @@ def main() -> int:
     invalid = float(np.mean([r["invalid_generated_texels"] for r in rows]))
     best_baseline = max(overall[k]["psnr"] for k in METHODS[1:])
     report = {"seed": args.seed, "checkpoint": str(args.checkpoint), "views": args.views,
-              "eval_views": args.eval_views, "steps": args.steps, "guidance": args.guidance,
+              "eval_views": args.eval_views, "steps": args.steps, "samples": args.samples,
+              "guidance": args.guidance,
               "resolution": args.resolution, "spp": args.spp, "overall": overall,
               "invalid_generated_texels": invalid,
               "energy_gaining_before_guard": float(np.mean([r["energy_gaining_before_guard"] for r in rows])),

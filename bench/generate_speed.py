@@ -1,17 +1,20 @@
-"""Generator speed against accuracy: sampling steps and views vs PSNR vs seconds per object (issue 6, item 6).
+"""Generator speed against accuracy: sampling steps, views and samples vs PSNR vs seconds per object (issue 6, item 6).
 
-Two sweeps around 18 Heun steps and 8 views (the training views): the number of sampling
-steps at 8 views, and the number of views at the default steps. For each
-setting every held-out object is generated once (PSNR against its reference over
-16 orbit views, as bench/generate_eval.py measures it) and timed end to end
-(prior, condition views, sampling, projection; not the energy guard, whose cost
-depends on the texture's distinct latents rather than on steps or views and which
-bench/generate_eval.py times), one thread; seconds are the median
-over the objects, as CPU time of this process (the machine is shared, and one
-thread's CPU time is what it takes on an idle core) and as wall time. The
+Three sweeps: the number of sampling steps at 8 views (the training views), the
+number of views at 18 Heun steps, and the number of samples averaged (``generate``'s
+``samples``) at 18 steps and 12 views; ``--sweeps`` picks which run. For each
+setting every held-out object is generated once per seed (PSNR against its reference
+over 16 orbit views, as bench/generate_eval.py measures it; the mean over objects and
+seeds) and timed end to end (prior, condition views, sampling, projection; not the
+energy guard, whose cost depends on the texture's distinct latents rather than on
+these settings and which bench/generate_eval.py times), one thread; seconds are the
+median over objects and seeds, as CPU time of this process (the machine is shared,
+and one thread's CPU time is what it takes on an idle core) and as wall time. The
 suggested default is the fastest setting within 0.5 dB of the best mean PSNR.
+Averaging samples only pays where one draw's spread is what costs accuracy, which
+a single seed can hide: measure it over several (``--seeds 0,1``).
 
-    .venv/bin/python bench/generate_speed.py [--objects N] [--checkpoint DIR]
+    .venv/bin/python bench/generate_speed.py [--objects N] [--seeds 0,1] [--sweeps steps,views,samples] [--out FILE]
 """
 from __future__ import annotations
 
@@ -32,15 +35,34 @@ from torch_models.generator import generate as gen  # noqa: E402
 
 STEPS = (2, 4, 8, 18, 32)
 VIEWS = (4, 8, 12, 16)
-CENTRE = {"steps": 18, "views": 8}  # the sweeps cross here (the default before this bench)
+SAMPLES = (1, 2, 4, 8)
+# The steps and views sweeps cross here (the default before this bench).
+CENTRE = {"steps": 18, "views": 8, "samples": 1}
+SAMPLES_AT = {"steps": 18, "views": 12}  # the samples sweep runs at the steps and views chosen by the other two
+SWEEP_AXES = (("steps", {"views": CENTRE["views"], "samples": 1}, STEPS),  # (swept key, fixed keys, values)
+              ("views", {"steps": CENTRE["steps"], "samples": 1}, VIEWS),
+              ("samples", SAMPLES_AT, SAMPLES))
 TOLERANCE_DB = 0.5
+SWEEPS = ("steps", "views", "samples")
+
+
+def settings(sweeps: list[str]) -> list[dict[str, int]]:
+    """The settings of the named sweeps, each once (the sweeps share their crossing points)."""
+    if unknown := set(sweeps) - set(SWEEPS):
+        raise SystemExit(f"unknown sweep(s): {', '.join(sorted(unknown))} (choose from {', '.join(SWEEPS)})")
+    out: list[dict[str, int]] = []
+    for key, fixed, values in SWEEP_AXES:
+        if key in sweeps:
+            out += [s for s in ({**fixed, key: v} for v in values) if s not in out]
+    return out
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--checkpoint", type=Path, default=gen.SHIPPED)
     ap.add_argument("--objects", type=int, default=8)
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seeds", default="0", help="sampling seeds, comma-separated (default: 0)")
+    ap.add_argument("--sweeps", default=",".join(SWEEPS), help=f"which sweeps (default: {','.join(SWEEPS)})")
     ap.add_argument("--eval-views", type=int, default=16)
     ap.add_argument("--resolution", type=int, default=64)
     ap.add_argument("--spp", type=int, default=8)
@@ -52,28 +74,29 @@ def main() -> int:
     size = cfg.corpus.texture_size
     references = [render(o.inp, latents_of(o.material, size), args.eval_views, args.resolution, args.spp)
                   for o in objects]
-    settings = [{"steps": s, "views": CENTRE["views"]} for s in STEPS]
-    settings += [{"steps": CENTRE["steps"], "views": v} for v in VIEWS if v != CENTRE["views"]]
+    seeds = [int(s) for s in args.seeds.split(",")]
     rows = []
-    for setting in settings:
-        seconds, wall, scores = [], [], []
-        for obj, reference in zip(objects, references):
-            t0, c0 = time.perf_counter(), time.process_time()
-            result = gen.generate(obj.inp, obj.prompt, model, cfg, args.seed, setting["steps"], setting["views"],
-                                  texture_size=size, guard_energy=False)
-            seconds.append(time.process_time() - c0)
-            wall.append(time.perf_counter() - t0)
-            image = render(obj.inp, result.latents, args.eval_views, args.resolution, args.spp)
-            scores.append(psnr(reference, image, reference.sum(-1) > 0))
-        rows.append({**setting, "psnr": float(np.mean(scores)), "psnr_per_object": scores,
-                     "median_seconds": float(np.median(seconds)), "seconds": seconds,
+    for setting in settings(args.sweeps.split(",")):
+        seconds, wall, scores = [], [], {str(seed): [] for seed in seeds}
+        for seed in seeds:
+            for obj, reference in zip(objects, references):
+                t0, c0 = time.perf_counter(), time.process_time()
+                result = gen.generate(obj.inp, obj.prompt, model, cfg, seed, setting["steps"], setting["views"],
+                                      texture_size=size, guard_energy=False, samples=setting["samples"])
+                seconds.append(time.process_time() - c0)
+                wall.append(time.perf_counter() - t0)
+                image = render(obj.inp, result.latents, args.eval_views, args.resolution, args.spp)
+                scores[str(seed)].append(psnr(reference, image, reference.sum(-1) > 0))
+        rows.append({**setting, "psnr": float(np.mean(list(scores.values()))),
+                     "psnr_per_seed": {s: float(np.mean(v)) for s, v in scores.items()},
+                     "psnr_per_object": scores, "median_seconds": float(np.median(seconds)), "seconds": seconds,
                      "median_wall_seconds": float(np.median(wall))})
         print(f"{setting}: {rows[-1]['psnr']:.2f} dB, {rows[-1]['median_seconds']:.1f} s/object", flush=True)
     best = max(r["psnr"] for r in rows)
     chosen = min((r for r in rows if r["psnr"] >= best - TOLERANCE_DB), key=lambda r: r["median_seconds"])
     report = {"checkpoint": str(args.checkpoint), "objects": [o.asset.asset_id for o in objects],
-              "threads": 1, "eval_views": args.eval_views, "tolerance_db": TOLERANCE_DB,
-              "chosen": {"steps": chosen["steps"], "views": chosen["views"]}, "rows": rows}
+              "seeds": seeds, "threads": 1, "eval_views": args.eval_views, "tolerance_db": TOLERANCE_DB,
+              "chosen": {k: chosen[k] for k in CENTRE}, "rows": rows}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=1))
     plot(report, args.out.with_suffix(".png"))
@@ -89,19 +112,27 @@ def plot(report: dict, path: Path) -> None:
 
     rows = report["rows"]
     fig, ax = plt.subplots(figsize=(6.4, 3.8))
-    sweeps = (("steps", ("views", CENTRE["views"]), "o-"), ("views", ("steps", CENTRE["steps"]), "s--"))
-    for key, fixed, marker in sweeps:
-        sweep = sorted((r for r in rows if r[fixed[0]] == fixed[1]), key=lambda r: r[key])
+    for (key, fixed, _), marker in zip(SWEEP_AXES, ("o-", "s--", "^:")):
+        sweep = sorted((r for r in rows if all(r[k] == v for k, v in fixed.items())), key=lambda r: r[key])
+        if len(sweep) < 2:
+            continue
         ax.plot([r["median_seconds"] for r in sweep], [r["psnr"] for r in sweep], marker,
-                label=f"{key} ({fixed[0]} = {fixed[1]})")
+                label=f"{key} ({', '.join(f'{k} = {v}' for k, v in fixed.items())})")
         for r in sweep:
             ax.annotate(str(r[key]), (r["median_seconds"], r["psnr"]), fontsize=7, xytext=(3, 3),
                         textcoords="offset points")
-    chosen = next(r for r in rows if (r["steps"], r["views"]) == tuple(report["chosen"].values()))
+        if len(report.get("seeds", [])) > 1:  # each seed's mean beside the mean over seeds: their spread
+            colour = ax.lines[-1].get_color()
+            for seed in report["seeds"]:
+                ax.plot([r["median_seconds"] for r in sweep], [r["psnr_per_seed"][str(seed)] for r in sweep],
+                        marker[0], ms=4, alpha=0.4, color=colour,
+                        label=f"{key}, one seed each" if seed == report["seeds"][0] else None)
+    chosen = next(r for r in rows if all(r[k] == v for k, v in report["chosen"].items()))
     ax.plot([chosen["median_seconds"]], [chosen["psnr"]], "r*", ms=12, label="chosen default")
     ax.set_xlabel("CPU seconds per object (median, 1 thread)")
     ax.set_ylabel("PSNR vs reference (dB)")
-    ax.set_title("generator: sampling steps and views vs accuracy vs time", fontsize=10)
+    seeds = ", ".join(map(str, report.get("seeds", [0])))
+    ax.set_title(f"generator: steps, views and samples vs accuracy vs time (seed {seeds})", fontsize=10)
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

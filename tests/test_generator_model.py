@@ -148,11 +148,16 @@ def test_overfit_two_samples_loss_is_finite_and_falls():
     assert sum(losses[-8:]) < 0.7 * sum(losses[:8])
 
 
-def test_sampler_is_deterministic_per_seed_and_cfg_one_is_conditional():
+def _perturbed_generator() -> LatentGenerator:
     torch.manual_seed(0)
     model = LatentGenerator(TINY)
     for p in model.parameters():  # a non-trivial network: adaLN-Zero starts as the identity
         p.data.add_(0.05 * torch.randn_like(p))
+    return model
+
+
+def test_sampler_is_deterministic_per_seed_and_cfg_one_is_conditional():
+    model = _perturbed_generator()
     cond = _conditions(b=1, v=2)
     a = model.sample(cond, steps=4, seed=7, guidance=1.0)
     assert a.shape == (1, 2, LATENT_CHANNELS, TINY.size, TINY.size) and bool(a.isfinite().all())
@@ -162,3 +167,19 @@ def test_sampler_is_deterministic_per_seed_and_cfg_one_is_conditional():
     conditional = edm.heun_sample(lambda x, s: model.denoise(x, s, cond), noise, 4)
     assert torch.allclose(a, conditional, atol=1e-5)
     assert not torch.allclose(a, model.sample(cond, steps=4, seed=7, guidance=3.0), atol=1e-4)
+
+
+def test_averaged_samples_are_each_objects_mean_over_its_own_draws():
+    model = _perturbed_generator()
+    cond = _conditions(b=2, v=2)
+    avg = model.sample(cond, steps=4, seed=7, guidance=1.0, samples=3)
+    assert avg.shape == (2, 2, LATENT_CHANNELS, TINY.size, TINY.size)
+    noise = torch.randn((6, *avg.shape[1:]), generator=torch.Generator().manual_seed(7))
+    for i in range(2):  # draws 3i..3i+2 belong to object i
+        one = Conditions(cond.views[i:i + 1].repeat(3, 1, 1, 1, 1), cond.text[i:i + 1].repeat(3, 1),
+                         cond.type[i:i + 1].repeat(3))
+        draws = edm.heun_sample(lambda x, s: model.denoise(x, s, one), noise[3 * i:3 * i + 3], 4)
+        assert torch.allclose(avg[i], draws.mean(0), atol=1e-5)
+        assert draws.std(0).mean() > 10 * (avg[i] - draws.mean(0)).abs().max()
+    assert torch.equal(model.sample(cond, steps=4, seed=7, guidance=1.0, samples=1),
+                       model.sample(cond, steps=4, seed=7, guidance=1.0))

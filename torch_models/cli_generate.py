@@ -27,7 +27,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .generator import DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS
+from .generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS
 
 HELP = "generate the latent textures of a neural material for a mesh from a text prompt"
 
@@ -41,6 +41,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"Heun sampling steps (default: {DEFAULT_STEPS})")
     parser.add_argument("--views", type=int, default=DEFAULT_VIEWS,
                         help=f"orbit views generated (default: {DEFAULT_VIEWS})")
+    parser.add_argument("--samples", type=int, default=DEFAULT_SAMPLES,
+                        help=f"samples drawn and averaged, an estimate of the posterior mean "
+                             f"(default: {DEFAULT_SAMPLES}; each costs one more sampling run)")
     parser.add_argument("--guidance", type=float, default=2.0, help="classifier-free guidance scale (default: 2)")
     parser.add_argument("--texture-size", type=int, default=None,
                         help=f"latent texture size in texels (default: the base colour texture's size, at most "
@@ -72,8 +75,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         if not args.mesh.is_file():
             raise InputError(f"{args.mesh}: no such file")
-        if args.steps < 1 or args.views < 1 or (args.texture_size is not None and args.texture_size < 8):
-            raise InputError("--steps and --views must be >= 1 and --texture-size >= 8")
+        if min(args.steps, args.views, args.samples) < 1 or (args.texture_size is not None and args.texture_size < 8):
+            raise InputError("--steps, --views and --samples must be >= 1 and --texture-size >= 8")
         model, cfg = gen.load_generator(args.checkpoint or gen.SHIPPED)
         inp = load_mesh(args.mesh)
         if args.material is not None:
@@ -90,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         emit("progress", step=step, total=total)
 
     result = gen.generate(inp, args.prompt, model, cfg, args.seed, args.steps, args.views, args.guidance,
-                          args.texture_size, progress if jsonl else None, not args.no_energy_guard)
+                          args.texture_size, progress if jsonl else None, not args.no_energy_guard, args.samples)
     mismatch = gen.encoder_mismatch(args.checkpoint or gen.SHIPPED, weights.encoder_digest())
     if mismatch:
         result.warnings.append(mismatch)
@@ -104,7 +107,8 @@ def run(args: argparse.Namespace) -> int:
     if not inp.had_uvs:
         _write_unwrapped(inp, args.out / "mesh.glb")
     record = {"prompt": args.prompt, "type": result.type, "seed": args.seed, "steps": args.steps,
-              "views": args.views, "guidance": args.guidance, "texture_size": args.texture_size,
+              "views": args.views, "samples": args.samples, "guidance": args.guidance,
+              "texture_size": args.texture_size,
               "projection": result.projection.stats(result.charts), "warnings": result.warnings,
               "notes": inp.notes, "seconds": result.seconds,
               "energy_scale": "energy_scale.exr" if darkened > 0 else 1.0, "texels_darkened_by_guard": darkened,

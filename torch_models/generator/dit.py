@@ -145,6 +145,11 @@ class Conditions:
         return Conditions(self.views, torch.zeros_like(self.text), torch.full_like(self.type, NULL_TYPE),
                           self.unknown_prior)
 
+    def repeat(self, count: int) -> "Conditions":
+        """Each sample ``count`` times in a row (several draws for the same conditions)."""
+        rep = lambda t: None if t is None else t.repeat_interleave(count, 0)
+        return Conditions(rep(self.views), rep(self.text), rep(self.type), rep(self.unknown_prior))
+
     def drop(self, keep: Tensor) -> "Conditions":
         """Per-sample prompt dropout for classifier-free guidance training; keep (B,) bool."""
         return Conditions(self.views, self.text * keep[:, None], torch.where(keep, self.type, NULL_TYPE),
@@ -196,13 +201,16 @@ class LatentGenerator(nn.Module):
 
     @torch.no_grad()
     def sample(self, cond: Conditions, steps: int, seed: int, guidance: float = 1.0,
-               progress: Callable[[int, int], None] | None = None) -> Tensor:
+               progress: Callable[[int, int], None] | None = None, samples: int = 1) -> Tensor:
         """Residual latent views (B, V, 6, H, W) for the conditions, deterministic per seed: the
-        object's latents are ``cond.prior`` plus these."""
+        object's latents are ``cond.prior`` plus these. ``samples`` > 1 draws that many in one batch
+        and returns their mean, an estimate of the posterior mean (the least squared error)."""
+        cond = cond.repeat(samples)
         b, v, _, h, w = cond.views.shape
         noise = torch.randn((b, v, LATENT_CHANNELS, h, w),
                             generator=torch.Generator().manual_seed(seed)).to(cond.views.device)
         uncond = cond.unconditional()
         denoise = edm.guided(lambda x, s: self.denoise(x, s, cond), lambda x, s: self.denoise(x, s, uncond),
                              guidance)
-        return edm.heun_sample(denoise, noise, steps, progress, self.net.cfg.sigma_max)
+        x = edm.heun_sample(denoise, noise, steps, progress, self.net.cfg.sigma_max)
+        return x.reshape(b // samples, samples, *x.shape[1:]).mean(1)

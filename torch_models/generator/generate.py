@@ -16,7 +16,7 @@ from torch import Tensor
 from richmat_addon.core.maps import PbrInputs, ParamMap
 from richmat_addon.core.prompt import prompt_type
 from richmat_addon.core.uv_raster import rasterize as uv_rasterize
-from . import DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, text
+from . import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, text
 from .dit import Conditions, LatentGenerator
 from .mesh_input import MeshInput
 from .prior import prior_latents
@@ -94,9 +94,11 @@ def default_texture_size(inp: MeshInput) -> int:
 
 def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: GeneratorTrainConfig, seed: int = 0,
              steps: int = DEFAULT_STEPS, views: int = DEFAULT_VIEWS, guidance: float = 2.0, texture_size: int = DEFAULT_TEXTURE_SIZE,
-             progress: Callable[[int, int], None] | None = None, guard_energy: bool = True) -> Generation:
+             progress: Callable[[int, int], None] | None = None, guard_energy: bool = True,
+             samples: int = DEFAULT_SAMPLES) -> Generation:
     """The latent texture of ``inp`` for ``prompt``; ``progress(step, steps)`` follows the sampling.
-    ``guard_energy`` False skips the energy guard (its scale map is then all 1)."""
+    ``guard_energy`` False skips the energy guard (its scale map is then all 1); ``samples`` > 1
+    averages that many residuals (``LatentGenerator.sample``)."""
     times: dict[str, float] = {}
     t0 = time.perf_counter()
     type_, warnings = prompt_type(prompt, metallic=inp.metallic)
@@ -113,7 +115,7 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     cond = Conditions(cond_views.conditions(cond_views.latents)[None], text.embed([prompt]), torch.tensor([type_]))
     times["condition_views"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    residual = model.sample(cond, steps, seed, guidance, progress)[0]
+    residual = model.sample(cond, steps, seed, guidance, progress, samples)[0]
     times["sampling"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     fine_cams = orbit_cameras(views, res * PROJECTION_UPSAMPLE)
