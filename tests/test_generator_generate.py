@@ -80,6 +80,13 @@ def test_missing_checkpoint_is_bad_input(tmp_path):
                  "--checkpoint", str(tmp_path / "none")]) == 2
 
 
+@pytest.mark.parametrize("flag", ["--steps", "--views", "--samples"])
+def test_zero_steps_views_or_samples_is_bad_input_and_writes_nothing(flag, tmp_path):
+    out = tmp_path / "o"
+    assert main(["generate", str(GLB), "--prompt", "x", "--out", str(out), flag, "0"]) == 2
+    assert not out.exists()
+
+
 def test_a_mostly_inpainted_texture_is_warned_about(checkpoint):
     from torch_models.generator import generate as gen
     from torch_models.generator.mesh_input import load_mesh
