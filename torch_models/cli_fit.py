@@ -31,7 +31,8 @@ HELP = "fit the latent textures of an enhanced material against the frozen decod
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("material", type=Path, help="an enhanced material folder (params.json + EXRs)")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument("--steps", type=int, default=300, help="optimisation steps (default: 300)")
+    parser.add_argument("--steps", type=int, default=300,
+                        help="optimisation steps (default: 300); the energy refit takes as many, at most 150")
     parser.add_argument("--weights", type=Path, default=None, help="a training run folder (default: shipped)")
     parser.add_argument("--resume", action="store_true", help="continue an interrupted fit in OUT")
     parser.add_argument("--seed", type=int, default=0, help="seed of the direction samples (default: 0)")
@@ -81,9 +82,12 @@ def run(args: argparse.Namespace) -> int:
                     save_file({"latents": latest["z"], "step": torch.tensor(latest["step"])}, str(tmp))
             print(f"interrupted at step {latest['step']}; --resume continues from {state}")
             return 130
-    record = write_latents(args.out, mv, fit.fit_bounded(model, mv.unique, z, seed=args.seed))
+    # The energy refit gets no more steps than the fit had: a quick fit stays quick, and what the
+    # short refit leaves over the bound is scaled, as the furnace check counts.
+    refit_steps = min(fit.REFIT_STEPS, args.steps)
+    record = write_latents(args.out, mv, fit.fit_bounded(model, mv.unique, z, seed=args.seed, steps=refit_steps))
     record.update(decoder_sha256=model.digest, material=os.path.relpath(args.material, args.out),
-                  steps=args.steps, final_loss=latest["loss"])
+                  steps=args.steps, refit_steps=refit_steps, final_loss=latest["loss"])
     with atomic_path(args.out / "neural.json") as tmp:
         tmp.write_text(json.dumps(record, indent=1, sort_keys=True))
     state.unlink(missing_ok=True)
