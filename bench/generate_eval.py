@@ -181,7 +181,7 @@ def chart(report: dict, path: Path) -> None:
             ax.legend(loc="lower right", fontsize=8)
         ax.set_title(label, fontsize=9)
     fig.suptitle(f"generator on {len(report['objects'])} held-out objects, seed {report['seed']} "
-                 f"({report['steps']} steps, {report['views']} views)", fontsize=10)
+                 f"({report['steps']} steps, {report['views']} views, {report.get('samples', 1)} samples)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
