@@ -92,6 +92,26 @@ def test_fit_is_bit_reproducible_with_threads(tiny_weights: Path) -> None:
     assert not torch.are_deterministic_algorithms_enabled()  # the setting is restored after the fit
 
 
+def test_a_fit_penalty_joins_the_loss(tiny_weights: Path) -> None:
+    """``fit_latents(penalty=...)`` adds its term to the fitting loss: a strong pull towards a
+    point ends the fit near it, with the penalty called once per step."""
+    from torch_models.neural.data import parameter_vectors
+    from torch_models.neural.weights import load
+
+    model, vectors = load(tiny_weights), parameter_vectors(4, np.random.default_rng(1))
+    with torch.no_grad():  # within reach of 40 Adam steps of 0.01 from the encoder's start
+        target, calls = model.encoder(torch.from_numpy(vectors)) + 0.25, []
+
+    def pull(step: int, z: torch.Tensor) -> torch.Tensor:
+        calls.append(step)
+        return 100.0 * (z - target).pow(2).sum()
+
+    plain = fit.fit_latents(model, vectors, 40)
+    pulled = fit.fit_latents(model, vectors, 40, penalty=pull)
+    assert calls == list(range(40))
+    assert (pulled - target).abs().max() < 0.1 < (plain - target).abs().max()
+
+
 def test_constant_material_stays_one_vector(tiny_weights: Path, tmp_path: Path) -> None:
     pbr = PbrInputs("c", ParamMap.constant(0.5, 0.4, 0.3), ParamMap.constant(0.3), ParamMap.constant(0.0))
     write_material(tmp_path / "c", enhance(pbr, 2, 1), {"asset": "test"})

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -95,11 +95,14 @@ def read_vectors(folder: Path) -> MaterialVectors:
 
 
 def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int = FIT_BATCH, seed: int = 0,
-                start: Tensor | None = None, progress=None) -> Tensor:  # type: ignore[no-untyped-def]
+                start: Tensor | None = None, progress=None,  # type: ignore[no-untyped-def]
+                penalty: Callable[[int, Tensor], Tensor] | None = None) -> Tensor:
     """Latents (K, 6) of K parameter vectors, from the encoder (or ``start``), optimised ``steps`` times.
 
     Analytic targets cost far more than a decoder step, so ``FIT_BUFFER`` batches
     are drawn once and cycled through (fewer when there are fewer steps).
+    ``penalty(step, z)`` is added to the loss: a way to try other objectives
+    (bench/fit_limits.py) without a second optimisation loop.
     """
     pool = torch.from_numpy(vectors)
     with torch.no_grad():
@@ -112,6 +115,8 @@ def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int 
         for step in range(steps):
             b = buffer[step % len(buffer)]
             loss = decoder_loss(model.decoder, z[b.index], b)
+            if penalty is not None:
+                loss = loss + penalty(step, z)
             opt.zero_grad()
             loss.backward()
             opt.step()
