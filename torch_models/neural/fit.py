@@ -218,8 +218,9 @@ def guard(model: NeuralModel, z: Tensor, seed: int = 0, rounds: int = 4) -> Tens
     """
     scale = torch.ones(len(z))
     todo = torch.arange(len(z))
+    sums = half_vector_albedo(model, z)  # deterministic: a scaled latent's quadrature follows from it
     for r in range(rounds):
-        check = furnace(model, z[todo], seed=seed + 7919 * r, energy_scale=scale[todo])
+        check = furnace(model, z[todo], seed=seed + 7919 * r, energy_scale=scale[todo], quadrature=sums[todo])
         if not check.failing.any():
             break
         repair = check.energy_scale(margin=r == rounds - 1)
@@ -288,7 +289,7 @@ def _refit(model: NeuralModel, vectors: np.ndarray, z0: Tensor, steps: int, seed
             b = buffer[step % len(buffer)]
             pick = torch.randperm(len(z), generator=gen)[:REFIT_LATENTS]
             unscaled = torch.ones(len(pick))
-            excess = sum(torch.relu(_summed_albedo(model, z[pick], unscaled, wi, wo, w)[0] - REFIT_TARGET)
+            excess = sum(torch.relu(_summed_albedo(model, z[pick], wi, wo, w).albedo(unscaled) - REFIT_TARGET)
                          for wi, wo, w in nodes)
             loss = decoder_loss(model.decoder, z[b.index], b) + excess.mean()
             opt.zero_grad()
@@ -298,7 +299,8 @@ def _refit(model: NeuralModel, vectors: np.ndarray, z0: Tensor, steps: int, seed
 
 
 def furnace(model: NeuralModel, z: Tensor, n: int = 1024, seed: int = 0,
-            energy_scale: Tensor | None = None, confirm: int = 16) -> Furnace:
+            energy_scale: Tensor | None = None, confirm: int = 16,
+            quadrature: QuadratureSums | None = None) -> Furnace:
     """White furnace of s f_neu + T * (white Lambertian) at ``VIEW_COSINES``.
 
     s is ``energy_scale`` per latent (1 when None), to re-check repaired latents.
@@ -312,14 +314,15 @@ def furnace(model: NeuralModel, z: Tensor, n: int = 1024, seed: int = 0,
       Thousands of 3-sigma tests flag some latents by chance, so every latent that
       fails with n samples is measured again with ``confirm`` * n fresh ones, and
       that estimate stands.
+    ``quadrature`` passes the latents' ``half_vector_albedo`` when it is already known.
     """
     scale = torch.ones(len(z)) if energy_scale is None else energy_scale
     albedos, std_errors = _furnace_pass(model, z, n, seed, scale)
     again = _significant_gain(albedos, std_errors).any(1).nonzero(as_tuple=True)[0]
     if confirm > 1 and len(again):
         albedos[again], std_errors[again] = _furnace_pass(model, z[again], confirm * n, seed + 1, scale[again])
-    quadrature, diffuse = half_vector_albedo(model, z, scale)
-    return Furnace(albedos, std_errors, diffuse, quadrature)
+    sums = half_vector_albedo(model, z) if quadrature is None else quadrature
+    return Furnace(albedos, std_errors, sums.diffuse, sums.albedo(scale))
 
 
 def _significant_gain(albedos: Tensor, std_errors: Tensor) -> Tensor:
@@ -357,34 +360,50 @@ def half_vector_nodes(mu: float, n_theta: int = QUADRATURE_THETA,
     return wi, wo, weight
 
 
-def half_vector_albedo(model: NeuralModel, z: Tensor, scale: Tensor, n_theta: int = QUADRATURE_THETA,
-                       chunk: int = 1 << 18) -> tuple[Tensor, Tensor]:
-    """By quadrature at ``VIEW_COSINES``, (K, A) each: the albedo of the brightest channel of
-    s f_neu + T / pi (a white base), and the diffuse base's share of it.
+@dataclass
+class QuadratureSums:
+    """The half-vector quadrature of K latents (at ``VIEW_COSINES``, or one view): f_neu's albedo
+    per colour channel, unscaled, (K, [A,] 3), and the diffuse base's T / pi, (K, [A])."""
+
+    reflected: Tensor
+    diffuse: Tensor
+
+    def albedo(self, scale: Tensor) -> Tensor:
+        """The brightest channel's albedo of s f_neu + T / pi: linear in s, so a repaired
+        latent needs no second quadrature."""
+        s = scale.reshape((-1,) + (1,) * (self.reflected.dim() - 1))
+        return (self.reflected * s + self.diffuse[..., None]).amax(-1)
+
+    def __getitem__(self, index: Tensor) -> QuadratureSums:
+        return QuadratureSums(self.reflected[index], self.diffuse[index])
+
+
+def half_vector_albedo(model: NeuralModel, z: Tensor, n_theta: int = QUADRATURE_THETA,
+                       chunk: int = 1 << 18) -> QuadratureSums:
+    """By quadrature at ``VIEW_COSINES``: f_neu's albedo per channel and the diffuse base's.
 
     T comes out of the same network as f, so it varies a little with wo, as the
     renderer evaluates it: the diffuse base is integrated too, not taken at one wo."""
-    albedo, diffuse = torch.zeros(2, len(z), len(VIEW_COSINES))
+    reflected, diffuse = torch.zeros(len(z), len(VIEW_COSINES), 3), torch.zeros(len(z), len(VIEW_COSINES))
     with torch.no_grad():
         for a, mu in enumerate(VIEW_COSINES):
             wi, wo, weight = half_vector_nodes(mu, n_theta)
-            m = len(wo)
-            per_chunk = max(1, chunk // m)
+            per_chunk = max(1, chunk // len(wo))
             for k0 in range(0, len(z), per_chunk):
                 k = slice(k0, k0 + per_chunk)
-                albedo[k, a], diffuse[k, a] = _summed_albedo(model, z[k], scale[k], wi, wo, weight)
-    return albedo, diffuse
+                sums = _summed_albedo(model, z[k], wi, wo, weight)
+                reflected[k, a], diffuse[k, a] = sums.reflected, sums.diffuse
+    return QuadratureSums(reflected, diffuse)
 
 
-def _summed_albedo(model: NeuralModel, z: Tensor, scale: Tensor, wi: Tensor, wo: Tensor,
-                   weight: Tensor) -> tuple[Tensor, Tensor]:
-    """(K,) each: the brightest channel's albedo of s f_neu + T / pi at one wi, as the weighted
-    sum over the outgoing nodes wo (M, 3), and the diffuse base's share of it."""
+def _summed_albedo(model: NeuralModel, z: Tensor, wi: Tensor, wo: Tensor, weight: Tensor) -> QuadratureSums:
+    """At one wi, the weighted sums over the outgoing nodes wo (M, 3): f_neu's albedo (K, 3)
+    and the diffuse base's (K,)."""
     k, m = len(z), len(wo)
     f, t, _ = model.decoder(z.repeat_interleave(m, 0), wi.expand(k * m, 3), wo.repeat(k, 1))
-    reflected = (f.reshape(k, m, 3) * weight[None, :, None]).sum(1) * scale[:, None]
+    reflected = (f.reshape(k, m, 3) * weight[None, :, None]).sum(1)
     diffuse = (t.reshape(k, m) * wo[:, 2] * weight).sum(1) / math.pi
-    return (reflected + diffuse[:, None]).max(1).values, diffuse
+    return QuadratureSums(reflected, diffuse)
 
 
 def _furnace_pass(model: NeuralModel, z: Tensor, n: int, seed: int, scale: Tensor,
