@@ -11,8 +11,8 @@ alpha_haze = min(1, s r^q)):
   training: only 10 % of training vectors are partial metals);
 - the dielectric IOR over its schema range 1.3 .. 1.8 (set in the enhanced vector).
 
-All sweep points are fitted together against the frozen decoder (with the
-furnace repair applied, as the fit command does), rendered analytically and
+All sweep points are fitted together against the frozen decoder (then refitted
+under the energy bound and scaled where still needed, as the fit command does), rendered analytically and
 neurally on the preview ball and compared with mean FLIP.
 
 Grazing angle is not a material parameter: the ball shows every view angle at
@@ -51,7 +51,7 @@ from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors 
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.evaluate import (BallSetup, Comparison, compare, render_neural,  # noqa: E402
                                           render_reference, side_by_side)
-from torch_models.neural.fit import fit_latents, furnace  # noqa: E402
+from torch_models.neural.fit import REFIT_STEPS, fit_bounded, fit_latents  # noqa: E402
 from torch_models.neural.weights import NeuralModel  # noqa: E402
 from torch_models.render.camera import hit_sphere, primary_rays  # noqa: E402
 
@@ -163,7 +163,8 @@ def main() -> None:
     points = sweeps(args.seed, QUICK if args.quick else FULL)
     vectors = np.stack([p.vector for p in points])
     z = fit_latents(model, vectors, steps, batch=batch, seed=args.seed)
-    check = furnace(model, z)
+    bounded = fit_bounded(model, vectors, z, seed=args.seed, steps=min(steps, REFIT_STEPS))  # as `fit` does
+    z, check = bounded.z, bounded.check
     scale = check.energy_scale()
     setup = BallSetup.default(resolution, spp, args.seed)
     rows, results = [], []
@@ -175,7 +176,8 @@ def main() -> None:
         rows.append({"sweep": point.sweep, "value": point.value, "flip": result.flip,
                      "alpha_core": float(v[CHANNEL_SLICES["alpha_core"]][0]),
                      "alpha_haze": float(v[CHANNEL_SLICES["alpha_haze"]][0]),
-                     "furnace_albedo": float(check.albedo[k]), "energy_scale": float(scale[k])})
+                     "furnace_albedo": float(check.albedo[k]), "refitted": bool(bounded.refitted[k]),
+                     "energy_scale": float(scale[k])})
         print(f"{point.sweep:22s} {point.value:5.2f}  FLIP {result.flip:.4f}", flush=True)
     errors = albedo_errors(model, vectors, z, scale, albedo_n, args.seed)
     report = {"seed": args.seed, "quick": args.quick, "resolution": resolution, "spp": spp, "fit_steps": steps,
