@@ -37,13 +37,12 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
 from agreement_cases import cases  # noqa: E402
-from torch_models.brdf.model import LayeredBsdf, params_from_vectors  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.data import make_batch, view_directions  # noqa: E402
+from torch_models.neural.data import make_batch  # noqa: E402
 from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference  # noqa: E402
 from torch_models.neural.fit import FIT_BATCH, fit_latents  # noqa: E402
 from torch_models.neural.networks import LATENT  # noqa: E402
-from torch_models.neural.train import decoder_loss  # noqa: E402
+from torch_models.neural.train import decoder_loss, lobe_samples  # noqa: E402
 
 TARGET_MEDIAN, TARGET_WORST = 0.05, 0.12
 STARTS = 8
@@ -66,14 +65,11 @@ def albedo_penalty(model: weights.NeuralModel, vectors: Tensor, weight: float, v
     k, gen = len(vectors), torch.Generator().manual_seed(seed)
     drawn = []
     for _ in range(sets):
-        wi = view_directions(0.05 + 0.95 * torch.rand(k * views, 1, generator=gen)).repeat_interleave(samples, 0)
-        bsdf = LayeredBsdf(params_from_vectors(vectors.repeat_interleave(views * samples, 0)), torch.ones(1, 3))
+        s = lobe_samples(vectors.repeat_interleave(views, 0), samples, gen)
+        inv_pdf = torch.where(s.ok, 1 / s.pdf.clamp(min=1e-6), torch.zeros_like(s.pdf))[:, None]
         with torch.no_grad():
-            wo = bsdf.sample(wi, torch.rand(len(wi), 3, generator=gen))
-            pdf = bsdf.pdf(wi, wo)
-            inv_pdf = torch.where((wo[:, 2] > 0) & (pdf > 1e-6), 1 / pdf.clamp(min=1e-6), torch.zeros_like(pdf))[:, None]
-            reference = (bsdf.eval_neural_part(wi, wo) * inv_pdf).reshape(k, views, samples, 3).mean(2)
-        drawn.append((wi, wo, inv_pdf, reference))
+            reference = (s.bsdf.eval_neural_part(s.wi, s.wo) * inv_pdf).reshape(k, views, samples, 3).mean(2)
+        drawn.append((s.wi, s.wo, inv_pdf, reference))
 
     def penalty(step: int, z: Tensor) -> Tensor:
         wi, wo, inv_pdf, reference = drawn[step % sets]

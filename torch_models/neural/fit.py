@@ -288,8 +288,7 @@ def _refit(model: NeuralModel, vectors: np.ndarray, z0: Tensor, steps: int, seed
         for step in range(steps):
             b = buffer[step % len(buffer)]
             pick = torch.randperm(len(z), generator=gen)[:REFIT_LATENTS]
-            unscaled = torch.ones(len(pick))
-            excess = sum(torch.relu(_summed_albedo(model, z[pick], wi, wo, w).albedo(unscaled) - REFIT_TARGET)
+            excess = sum(torch.relu(_summed_albedo(model, z[pick], wi, wo, w).albedo() - REFIT_TARGET)
                          for wi, wo, w in nodes)
             loss = decoder_loss(model.decoder, z[b.index], b) + excess.mean()
             opt.zero_grad()
@@ -368,11 +367,13 @@ class QuadratureSums:
     reflected: Tensor
     diffuse: Tensor
 
-    def albedo(self, scale: Tensor) -> Tensor:
-        """The brightest channel's albedo of s f_neu + T / pi: linear in s, so a repaired
-        latent needs no second quadrature."""
-        s = scale.reshape((-1,) + (1,) * (self.reflected.dim() - 1))
-        return (self.reflected * s + self.diffuse[..., None]).amax(-1)
+    def albedo(self, scale: Tensor | None = None) -> Tensor:
+        """The brightest channel's albedo of s f_neu + T / pi (s = 1 when None): linear in s,
+        so a repaired latent needs no second quadrature."""
+        reflected = self.reflected
+        if scale is not None:
+            reflected = reflected * scale.reshape((-1,) + (1,) * (reflected.dim() - 1))
+        return (reflected + self.diffuse[..., None]).amax(-1)
 
     def __getitem__(self, index: Tensor) -> QuadratureSums:
         return QuadratureSums(self.reflected[index], self.diffuse[index])

@@ -132,16 +132,36 @@ def albedo_loss(dec: Decoder, z: Tensor, vectors: Tensor, n: int, gen: torch.Gen
     so the squared error's gradient is unbiased up to the estimate's variance, which the
     0.05 in the denominator keeps from dominating dark materials."""
     k, device = len(z), z.device
+    s = lobe_samples(vectors, n, gen)
+    with torch.no_grad():
+        target = s.bsdf.reflectance(s.wi)[::n, 0].to(device)
+    f, _, _ = dec(z.repeat_interleave(n, 0), s.wi.to(device), s.wo.to(device))
+    est = torch.where(s.ok.to(device), luminance(f)[:, 0] / s.pdf.clamp(min=1e-6).to(device), torch.zeros_like(f[:, 0]))
+    return (((est.reshape(k, n).mean(1) - target) / (target + 0.05)) ** 2).mean()
+
+
+@dataclass
+class LobeSamples:
+    """n outgoing directions per material, importance-sampled from its analytic lobes at one
+    random view angle: the material at every sample, wi and wo (K n, 3), the exact pdf
+    (K n,) and where the estimate may divide by it (above the horizon, pdf > 1e-6)."""
+
+    bsdf: LayeredBsdf
+    wi: Tensor
+    wo: Tensor
+    pdf: Tensor
+    ok: Tensor
+
+
+def lobe_samples(vectors: Tensor, n: int, gen: torch.Generator) -> LobeSamples:
+    """``LobeSamples`` of materials (K, 22), view cosines uniform in [0.05, 1], on the CPU."""
+    k = len(vectors)
     wi = view_directions(0.05 + 0.95 * torch.rand(k, 1, generator=gen)).repeat_interleave(n, 0)
     with torch.no_grad():
         bsdf = LayeredBsdf(params_from_vectors(vectors.cpu().repeat_interleave(n, 0)), torch.ones(1, 3))
         wo = bsdf.sample(wi, torch.rand(k * n, 3, generator=gen))
         pdf = bsdf.pdf(wi, wo)
-        target = bsdf.reflectance(wi)[::n, 0].to(device)
-    ok = ((wo[:, 2] > 0) & (pdf > 1e-6)).to(device)
-    f, _, _ = dec(z.repeat_interleave(n, 0), wi.to(device), wo.to(device))
-    est = torch.where(ok, luminance(f)[:, 0] / pdf.clamp(min=1e-6).to(device), torch.zeros_like(f[:, 0]))
-    return (((est.reshape(k, n).mean(1) - target) / (target + 0.05)) ** 2).mean()
+    return LobeSamples(bsdf, wi, wo, pdf, (wo[:, 2] > 0) & (pdf > 1e-6))
 
 
 def _cosine_lr(cfg: TrainConfig, step: int, total: int) -> float:
