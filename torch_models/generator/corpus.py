@@ -170,6 +170,19 @@ def read_batch_passes(exr: Path) -> dict[str, np.ndarray]:
     return layers
 
 
+def batch_assets(folder: Path) -> list[Path]:
+    """The finished asset folders of a ``batch/`` output, or ``folder`` itself when it is one.
+
+    Only folders with a manifest count: batch renames ``<id>.partial`` to ``<id>`` when an
+    asset is complete, so an interrupted run's work folders are never read."""
+    if (folder / "manifest.json").is_file():
+        return [folder]
+    if not folder.is_dir():
+        raise FileNotFoundError(f"{folder}: no batch output (make it with batch/render_dataset.py, docs/generator.md)")
+    return sorted(p for p in folder.iterdir()
+                  if p.is_dir() and not p.name.endswith(".partial") and (p / "manifest.json").is_file())
+
+
 def from_batch(folder: Path) -> Sample:
     """A sample from one finished batch asset folder (passes/, caption.txt, manifest.json).
 

@@ -25,9 +25,9 @@ from .dit import Conditions, DitConfig, LatentGenerator
 
 @dataclass
 class CorpusConfig:
-    dir: str = "generator_corpus"  # relative paths are relative to the config file
+    dir: str = "generator_corpus"  # relative paths (here and in batch_dirs) are relative to the config file
     procedural: int = 400  # procedural objects made (and kept) in dir
-    batch_dirs: list[str] = field(default_factory=list)  # finished batch/ outputs to add
+    batch_dirs: list[str] = field(default_factory=list)  # batch/ outputs (or single asset folders) to add
     views: int = 8
     resolution: int = 32
     texture_size: int = 64
@@ -62,8 +62,11 @@ class GeneratorTrainConfig:
     @classmethod
     def load(cls, path: Path) -> "GeneratorTrainConfig":
         cfg = cls.from_dict(json.loads(path.read_text()))
-        if not Path(cfg.corpus.dir).is_absolute():
-            cfg.corpus.dir = str((path.parent / cfg.corpus.dir).resolve())
+        def here(d: str) -> str:
+            return d if Path(d).is_absolute() else str((path.parent / d).resolve())
+
+        cfg.corpus.dir = here(cfg.corpus.dir)
+        cfg.corpus.batch_dirs = [here(d) for d in cfg.corpus.batch_dirs]
         return cfg
 
     def to_dict(self) -> dict:
@@ -83,7 +86,7 @@ def load_corpus(cfg: CorpusConfig, progress: bool = True) -> list[corpus.Sample]
     paths = corpus.build_procedural(Path(cfg.dir), cfg.procedural, cfg.views, cfg.resolution, cfg.seed,
                                     cfg.texture_size, cfg.fit_steps, cfg.supersample, progress)
     samples = [corpus.Sample.load(p) for p in paths]
-    samples += [corpus.from_batch(Path(d)) for d in cfg.batch_dirs]
+    samples += [corpus.from_batch(a) for d in cfg.batch_dirs for a in corpus.batch_assets(Path(d))]
     return samples
 
 
