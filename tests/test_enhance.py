@@ -69,6 +69,19 @@ def test_textures_keep_their_resolution_and_only_varying_maps_are_textures():
     assert mat.params["diel_ior"].is_constant and mat.params["dust_weight"].is_constant
 
 
+@pytest.mark.parametrize("type_", [1, 2, 3])
+def test_masks_take_a_non_square_texture_s_shape(type_):
+    """UV-space dust and clearcoat damage on a 24 x 40 texture are 24 x 40 maps (they were 40 x 40)."""
+    masked = set()
+    for seed in range(8):
+        mat = enhance(pbr(size=(24, 40)), type_, seed=seed)
+        for name in ("dust_weight", "coat_weight"):
+            if not mat.params[name].is_constant:
+                assert mat.params[name].shape == (24, 40), (seed, name)
+                masked.add(name)
+    assert masked  # some seed drew a mask
+
+
 def test_dust_prefers_upward_faces():
     n = np.zeros((16, 16, 3), np.float32)
     n[:8, :, 2], n[8:, :, 2] = 1.0, -1.0

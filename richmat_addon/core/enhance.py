@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import warnings
+from collections.abc import Callable
 
 import numpy as np
 
@@ -87,11 +88,18 @@ def _fit(name: str, value: np.ndarray | float) -> ParamMap:
     return ParamMap(v)
 
 
-def _mask_size(pbr: PbrInputs, normals: ParamMap | None) -> int | None:
-    """Mask resolution: the largest input texture; None when nothing gives a texture space."""
-    sizes = [max(m.shape) for m in (pbr.base_color, pbr.roughness, pbr.metalness, normals)
-             if m is not None and m.shape]
-    return max(sizes) if sizes else None
+def _mask_shape(pbr: PbrInputs, normals: ParamMap | None) -> tuple[int, int] | None:
+    """(H, W) of the largest input texture, the mask's texture space; None when nothing gives one."""
+    shapes = [m.shape for m in (pbr.base_color, pbr.roughness, pbr.metalness, normals)
+              if m is not None and m.shape]
+    return max(shapes, key=max) if shapes else None
+
+
+def _uv_mask(mask: Callable[[int, masks.Rng], np.ndarray], shape: tuple[int, int], rng: masks.Rng) -> np.ndarray:
+    """A square tileable mask made at the texture's longer side and cut to its (H, W), so a
+    non-square texture gets a mask of its own shape with square features."""
+    h, w = shape
+    return mask(max(h, w), rng)[:h, :w]
 
 
 def _dust_weight(pbr: PbrInputs, rng: np.random.Generator, peak: float,
@@ -99,16 +107,17 @@ def _dust_weight(pbr: PbrInputs, rng: np.random.Generator, peak: float,
                  settings: dict) -> np.ndarray:
     """Upward-facing factor times a triplanar mask; UV-space mask without geometry."""
     kind = str(rng.choice(sorted(masks.DUST_MASKS)))
-    size = _mask_size(pbr, normals)
-    if size is None:  # factor-only material without world maps: no texture to put a mask in
+    shape = _mask_shape(pbr, normals)
+    if shape is None:  # factor-only material without world maps: no texture to put a mask in
         settings["dust_mask"] = "none: no texture space"
         return np.float32(peak * DUST_MASK_FLOOR)
-    # Dust still settles between the features: the mask modulates, never zeroes.
-    mask = DUST_MASK_FLOOR + (1.0 - DUST_MASK_FLOOR) * masks.DUST_MASKS[kind](size, rng)
     settings["dust_mask"] = kind
+    # Dust still settles between the features: the mask modulates, never zeroes.
     if normals is None or positions is None or normals.is_constant:
         settings["dust_geometry"] = "none: mask in UV space, surface assumed facing up"
+        mask = DUST_MASK_FLOOR + (1.0 - DUST_MASK_FLOOR) * _uv_mask(masks.DUST_MASKS[kind], shape, rng)
         return peak * mask[..., None]
+    mask = DUST_MASK_FLOOR + (1.0 - DUST_MASK_FLOOR) * masks.DUST_MASKS[kind](max(shape), rng)
     n = normals.value / np.maximum(np.linalg.norm(normals.value, axis=-1, keepdims=True), 1e-12)
     up = np.clip(n[..., 2:3] / 0.7, 0.0, 1.0) ** 2
     tri = masks.triplanar(mask, positions.value, n, scale=rng.uniform(1.0, 3.0))[..., None]
@@ -153,12 +162,12 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
     if "coat" in lobes:
         s.update(coat_ior=rng.uniform(1.45, 1.6), coat_alpha=rng.uniform(0.0025, 0.02),
                  coat_damage=str(rng.choice(["none"] + sorted(masks.DAMAGE_MASKS))))
-        damage_size = _mask_size(pbr, world_normals)
-        if damage_size is None:
+        damage_shape = _mask_shape(pbr, world_normals)
+        if damage_shape is None:
             s["coat_damage"] = "none"
         values["coat_ior"], values["coat_alpha"] = s["coat_ior"], s["coat_alpha"]
         values["coat_weight"] = 1.0 if s["coat_damage"] == "none" else \
-            1.0 - masks.DAMAGE_MASKS[s["coat_damage"]](damage_size, rng)
+            1.0 - _uv_mask(masks.DAMAGE_MASKS[s["coat_damage"]], damage_shape, rng)
     if "scatter" in lobes:
         s.update(inner_weight=rng.uniform(0.2, 0.6), inner_roughness=rng.uniform(0.3, 0.7),
                  subsurf_alpha=rng.uniform(0.5, 0.9), subsurf_ior=rng.uniform(1.3, 1.5))
