@@ -47,7 +47,7 @@ from torch_models.generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS
 from torch_models.generator import generate as gen  # noqa: E402
 from torch_models.generator.dit import LatentGenerator  # noqa: E402
 from torch_models.generator.mesh_input import MeshInput  # noqa: E402
-from torch_models.generator.train import GeneratorTrainConfig  # noqa: E402
+from torch_models.generator.train import CorpusConfig, GeneratorTrainConfig, load_corpus  # noqa: E402
 from torch_models.neural import fit, weights  # noqa: E402
 from torch_models.render.flip import mean_flip  # noqa: E402
 from torch_models.render.tonemap import agx  # noqa: E402
@@ -87,11 +87,10 @@ def held_out(index: int, cfg: GeneratorTrainConfig) -> HeldOut:
 class Retrieval:
     """Nearest training object by caption embedding; its mean covered latent as a constant material."""
 
-    def __init__(self, corpus_dir: Path) -> None:
-        samples = [corpus.Sample.load(p) for p in sorted(corpus_dir.glob("*.safetensors"))]
-        samples = [s for s in samples if not corpus.is_held_out(s.asset_id)]
+    def __init__(self, data: CorpusConfig) -> None:
+        samples = [s for s in load_corpus(data, progress=False) if not corpus.is_held_out(s.asset_id)]
         if not samples:
-            raise SystemExit(f"{corpus_dir}: no training samples for the retrieval baseline")
+            raise SystemExit(f"{data.dir}: no training samples for the retrieval baseline")
         self.embeddings = torch.stack([s.text for s in samples])
         means = []
         for s in samples:
@@ -206,7 +205,7 @@ def main() -> int:
     out = args.out or REPO / "docs" / name
     model, cfg = gen.load_generator(args.checkpoint)
     objects = [held_out(i, cfg) for i in held_out_indices(args.objects, cfg.corpus.seed)]
-    retrieval = Retrieval(Path(cfg.corpus.dir))
+    retrieval = Retrieval(cfg.corpus)
     rows = []
     for obj in objects:
         rows.append(evaluate(obj, model, cfg, args, retrieval))

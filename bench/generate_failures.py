@@ -146,7 +146,7 @@ def main() -> int:
                                                                views)}
         report["views"].append(row)
         print("views", {k: row[k] for k in ("object", "views", "seen", "fallback")}, flush=True)
-    captions = Retrieval(Path(cfg.corpus.dir)).embeddings
+    captions = Retrieval(cfg.corpus).embeddings
     for group, prompts in PROMPTS.items():
         for prompt in prompts:
             type_, warnings = prompt_type(prompt)
