@@ -16,9 +16,10 @@ SHIPPED_WEIGHTS = REPO / "torch_models" / "neural" / "weights"
 PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
 
 
-@pytest.fixture(scope="module")
-def untrained_model(tmp_path_factory: pytest.TempPathFactory):
-    """Seeded freshly initialised networks saved as a run folder: any weights test the shader's arithmetic."""
+@pytest.fixture(scope="module", params=["half", "half_log_slope"])
+def untrained_model(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory):
+    """Seeded freshly initialised networks saved as a run folder, one per direction encoding:
+    any weights test the shader's arithmetic."""
     import torch
     from safetensors.torch import save_file
 
@@ -27,10 +28,10 @@ def untrained_model(tmp_path_factory: pytest.TempPathFactory):
 
     torch.manual_seed(7)
     folder = tmp_path_factory.mktemp("untrained")
-    nets = {"encoder": Encoder(), "decoder": Decoder(), "sampler": SamplingDecoder()}
+    nets = {"encoder": Encoder(), "decoder": Decoder(encoding=request.param), "sampler": SamplingDecoder()}
     save_file({f"{name}.{k}": v.contiguous() for name, net in nets.items() for k, v in net.state_dict().items()},
               str(folder / "weights.safetensors"))
-    (folder / "state.json").write_text(json.dumps({"config": {"width": 64, "depth": 4}}))
+    (folder / "state.json").write_text(json.dumps({"config": {"width": 64, "depth": 4, "encoding": request.param}}))
     return folder, load(folder)
 
 
@@ -40,6 +41,7 @@ def test_source_embeds_every_weight_and_the_reader_needs_no_torch(untrained_mode
     assert np.allclose(tensors["decoder.net.8.weight"], model.decoder.net[8].weight.numpy())
     src = neural_osl_source(tensors)
     assert "shader richmat_neural" in src and "emission()" in src and "diffuse(n)" in src
+    assert ("#define DECODER_EXTRA , log_slope" in src) == (model.decoder.encoding == "half_log_slope")
     assert src.count("float W") == 5 + 3  # decoder and sampling decoder layers
     with pytest.raises(ValueError, match="layout"):
         neural_osl_source({k: v for k, v in tensors.items() if not k.startswith("decoder.net.8")})

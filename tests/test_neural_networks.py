@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from richmat_addon.core.schema import bounds, default_vector
-from torch_models.neural.networks import LATENT, Decoder, Encoder, SamplingDecoder
+from torch_models.neural.networks import LATENT, Decoder, Encoder, SamplingDecoder, direction_features
 from tests.chi2 import chi2_test, sidak_threshold
 
 CASES = [(0, 0.9), (1, 0.4), (2, 0.08)]  # (network seed, cos theta_i)
@@ -29,9 +29,10 @@ def test_encoder_latents_stay_in_the_box() -> None:
     assert z.shape == (501, LATENT) and (z.abs() < 1).all()
 
 
-def test_decoder_outputs_are_finite_bounded_and_zero_below_the_horizon() -> None:
+@pytest.mark.parametrize("encoding", ["half", "half_log_slope"])
+def test_decoder_outputs_are_finite_bounded_and_zero_below_the_horizon(encoding: str) -> None:
     gen = torch.Generator().manual_seed(1)
-    dec = Decoder().double()
+    dec = Decoder(encoding=encoding).double()
     z = 1.1 * (2 * torch.rand(1000, LATENT, generator=gen, dtype=torch.float64) - 1)  # box + 10 %
     wi, wo = _unit(1000, gen), _unit(1000, gen)
     wo[:500, 2] *= -1  # below the horizon
@@ -39,6 +40,20 @@ def test_decoder_outputs_are_finite_bounded_and_zero_below_the_horizon() -> None
     assert f.shape == (1000, 3) and t.shape == (1000, 1) and r.shape == (1000, 1)
     assert torch.isfinite(f).all() and (f >= 0).all() and (f[:500] == 0).all()
     assert ((t >= 0) & (t <= 1)).all() and ((r >= 0) & (r <= 1)).all()
+
+
+def test_log_slope_feature_is_the_half_vectors_log_tan_squared() -> None:
+    """For wo = wi the half vector is wi itself, so the extra feature is ln(tan^2 theta_i) / 8,
+    floored at the mirror direction (tan 0) where the logarithm has no value."""
+    theta = torch.tensor([0.0, 1e-3, 0.3, 1.2], dtype=torch.float64)
+    wi = torch.stack([theta.sin(), torch.zeros_like(theta), theta.cos()], -1)
+    half, log_slope = direction_features(wi, wi, "half"), direction_features(wi, wi, "half_log_slope")
+    assert half.shape == (4, 10) and log_slope.shape == (4, 11)
+    assert torch.equal(log_slope[:, :10], half)
+    expected = torch.log(torch.tan(theta).square().clamp(min=1e-10)) / 8
+    assert torch.allclose(log_slope[:, 10], expected, atol=1e-6)
+    with pytest.raises(ValueError, match="encoding"):
+        Decoder(encoding="polar")
 
 
 @pytest.mark.parametrize("seed,mu", CASES)

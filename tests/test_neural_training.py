@@ -120,3 +120,22 @@ def test_fine_tune_from_a_run_keeps_its_encoder(tmp_path: Path) -> None:
     before, after = (load_file(str(tmp_path / run / "weights.safetensors")) for run in ("base", "tune"))
     assert all(torch.equal(before[k], after[k]) for k in before if k.startswith("encoder."))
     assert any(not torch.equal(before[k], after[k]) for k in before if k.startswith("decoder."))
+
+
+def test_new_decoder_against_a_runs_frozen_encoder(tmp_path: Path) -> None:
+    """init_networks ["encoder"]: the latent space comes from the run, the decoder (here with
+    another direction encoding, so another input width) starts fresh and loads back as trained."""
+    from torch_models.neural.weights import load
+
+    base = tmp_path / "base.json"
+    base.write_text(json.dumps(dict(TINY, steps=20, sampler_steps=0)))
+    assert main(["train-decoder", "--config", str(base), "--out", str(tmp_path / "base")]) == 0
+    new = tmp_path / "new.json"
+    new.write_text(json.dumps(dict(TINY, steps=10, sampler_steps=0, init="base", init_networks=["encoder"],
+                                   freeze_encoder=True, encoding="half_log_slope")))
+    assert main(["train-decoder", "--config", str(new), "--out", str(tmp_path / "new")]) == 0
+    before, after = (load_file(str(tmp_path / run / "weights.safetensors")) for run in ("base", "new"))
+    assert all(torch.equal(before[k], after[k]) for k in before if k.startswith("encoder."))
+    assert before["decoder.net.0.weight"].shape[1] == 16 and after["decoder.net.0.weight"].shape[1] == 17
+    assert load(tmp_path / "new").decoder.encoding == "half_log_slope"
+    assert load(tmp_path / "base").decoder.encoding == "half"

@@ -29,7 +29,6 @@ from torch import Tensor, nn
 from richmat_addon.core.schema import bounds
 
 LATENT = 6
-DIRECTION_FEATURES = 10
 MAX_LOG_F = 12.0  # exp(12) ~ 1.6e5: above any f*cos a GGX lobe with alpha >= 1e-2 reaches
 SATURATION = 2.0  # encoder pre-activations beyond +-2 are penalised in training (tanh(2) = 0.96)
 
@@ -48,10 +47,22 @@ def normalise_params(vectors: Tensor) -> Tensor:
     return (vectors - lo) / (hi - lo)
 
 
-def direction_features(wi: Tensor, wo: Tensor) -> Tensor:
+# Direction encodings: name -> number of features. "half": wi, wo, h, wi.h.
+# "half_log_slope" adds ln(tan^2 theta_h) / 8: a GGX lobe of width alpha is a kink at
+# ln(alpha^2) there, so a near-mirror lobe (alpha 1e-3) is as easy for a ReLU network
+# as a rough one, where in h_z it is a spike 1e-6 wide.
+DIRECTION_ENCODINGS = {"half": 10, "half_log_slope": 11}
+LOG_SLOPE_FLOOR = 1e-10  # tan^2 theta_h below this reads as this (alpha ~ 1e-5)
+
+
+def direction_features(wi: Tensor, wo: Tensor, encoding: str = "half") -> Tensor:
     h = wi + wo
     h = h / h.norm(dim=-1, keepdim=True).clamp(min=1e-12)
-    return torch.cat([wi, wo, h, (wi * h).sum(-1, keepdim=True)], -1)
+    parts = [wi, wo, h, (wi * h).sum(-1, keepdim=True)]
+    if encoding == "half_log_slope":
+        hz2 = h[:, 2:3].square().clamp(min=1e-6)
+        parts.append(((1.0 - hz2).clamp(min=0.0) / hz2).clamp(min=LOG_SLOPE_FLOOR).log() / 8.0)
+    return torch.cat(parts, -1)
 
 
 class Encoder(nn.Module):
@@ -74,14 +85,16 @@ def saturation(pre_activation: Tensor) -> Tensor:
 class Decoder(nn.Module):
     """f_neu * cos (N, 3), T (N, 1), R (N, 1) from latents (N, 6) and directions (N, 3)."""
 
-    def __init__(self, width: int = 64, depth: int = 4) -> None:
+    def __init__(self, width: int = 64, depth: int = 4, encoding: str = "half") -> None:
         super().__init__()
-        self.width, self.depth = width, depth
-        self.net = mlp(LATENT + DIRECTION_FEATURES, width, depth, 5)
+        if encoding not in DIRECTION_ENCODINGS:
+            raise ValueError(f"unknown direction encoding {encoding!r}: one of {sorted(DIRECTION_ENCODINGS)}")
+        self.width, self.depth, self.encoding = width, depth, encoding
+        self.net = mlp(LATENT + DIRECTION_ENCODINGS[encoding], width, depth, 5)
 
     def log_forward(self, latent: Tensor, wi: Tensor, wo: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         """(log(1 + f * cos) before the horizon mask, T, R): what training compares with targets."""
-        out = self.net(torch.cat([latent, direction_features(wi, wo)], -1))
+        out = self.net(torch.cat([latent, direction_features(wi, wo, self.encoding)], -1))
         return out[:, :3], torch.sigmoid(out[:, 3:4]), torch.sigmoid(out[:, 4:5])
 
     def forward(self, latent: Tensor, wi: Tensor, wo: Tensor) -> tuple[Tensor, Tensor, Tensor]:

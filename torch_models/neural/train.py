@@ -20,9 +20,10 @@ The per-pair loss does not tie the integral of f_neu to the material's albedo,
 and a decoder trained with it alone kept 31 % of the analytic albedo at cos 0.1
 (bench/albedo_agreement.py). ``albedo_weight`` adds the squared relative error
 of an importance-sampled estimate of that albedo against the analytic R(wi)
-(``albedo_loss``). ``init`` starts from another run's networks and
-``freeze_encoder`` keeps its encoder, so a fine-tune keeps the latent space that
-fitted materials and the generator's corpus were made in.
+(``albedo_loss``). ``init`` starts from another run's networks (``init_networks``
+names which) and ``freeze_encoder`` keeps its encoder, so a fine-tune, or a new
+decoder trained against the old encoder, keeps the latent space that fitted
+materials and the generator's corpus were made in.
 
 Data are generated on the fly into an in-memory buffer that is refreshed every
 ``refresh_every`` steps (generating a batch costs more than a training step on a
@@ -56,6 +57,7 @@ class TrainConfig:
     seed: int = 0
     width: int = 64
     depth: int = 4
+    encoding: str = "half"  # decoder direction encoding (networks.DIRECTION_ENCODINGS)
     pool: int = 20_000  # distinct parameter vectors drawn from the enhancement rules
     buffer_batches: int = 8  # batches kept in memory, refreshed one at a time
     refresh_every: int = 4  # training steps per newly generated batch
@@ -72,6 +74,7 @@ class TrainConfig:
     albedo_materials: int = 64  # materials per albedo estimate, each at one random view angle
     albedo_samples: int = 128  # importance-sampled wo per material
     init: str = ""  # run folder to start from (relative to the config file); "" starts from scratch
+    init_networks: list[str] = field(default_factory=lambda: ["encoder", "decoder", "sampler"])  # taken from init
     freeze_encoder: bool = False  # with init: train the decoder only, keeping the latent space
     lr: float = 2e-3
     lr_final: float = 2e-5
@@ -225,7 +228,7 @@ class Trainer:
         if cfg.threads:
             torch.set_num_threads(cfg.threads)
         device = self.where.device
-        self.encoder, self.decoder = Encoder().to(device), Decoder(cfg.width, cfg.depth).to(device)
+        self.encoder, self.decoder = Encoder().to(device), Decoder(cfg.width, cfg.depth, cfg.encoding).to(device)
         self.sampler = SamplingDecoder().to(device)
         self.objective = data_parallel(Objective(self.encoder, self.decoder, cfg), self.where)
         self.sampler_objective = data_parallel(SamplerObjective(self.sampler), self.where)
@@ -235,7 +238,7 @@ class Trainer:
         self.pool = torch.from_numpy(parameter_vectors(cfg.pool, np.random.default_rng(cfg.seed)))
         self.buffer = [self._new_batch() for _ in range(cfg.buffer_batches)]
         if cfg.init:
-            self._load(Path(cfg.init) / "weights.safetensors")
+            self._load(Path(cfg.init) / "weights.safetensors", cfg.init_networks)
         if cfg.freeze_encoder:
             self.encoder.requires_grad_(False)
         trained = [p for p in (*self.encoder.parameters(), *self.decoder.parameters()) if p.requires_grad]
@@ -279,8 +282,9 @@ class Trainer:
         self.gen.manual_seed(self._data_seed(self.step))  # fresh data after a resume, reproducibly
         return True
 
-    def _load(self, path: Path) -> None:
-        load_networks(path, {"encoder": self.encoder, "decoder": self.decoder, "sampler": self.sampler})
+    def _load(self, path: Path, names: list[str] | None = None) -> None:
+        nets = {"encoder": self.encoder, "decoder": self.decoder, "sampler": self.sampler}
+        load_networks(path, {k: v for k, v in nets.items() if names is None or k in names})
 
     # ---- training -------------------------------------------------------------------
     def _decoder_step(self, energy: bool = False) -> float:

@@ -52,7 +52,7 @@ def load(folder: Path = SHIPPED) -> NeuralModel:
         raise FileNotFoundError(f"{folder}: no trained decoder here (weights.safetensors, state.json); "
                                 "run `python -m torch_models train-decoder` first")
     cfg = json.loads(state.read_text())["config"]
-    nets = {"encoder": Encoder(), "decoder": Decoder(cfg["width"], cfg["depth"]), "sampler": SamplingDecoder()}
+    nets = {"encoder": Encoder(), "decoder": Decoder(cfg["width"], cfg["depth"], cfg.get("encoding", "half")), "sampler": SamplingDecoder()}
     load_networks(weights, nets)
     for net in nets.values():
         net.eval().requires_grad_(False)
