@@ -145,9 +145,10 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
 def energy_guard(latents: np.ndarray) -> np.ndarray:
     """(H, W) f_neu scale per texel that keeps every texel inside the white furnace.
 
-    Sampling and view averaging can land on latents that gain energy (a few in ten
-    thousand texels): ``fit.guard`` measures each distinct latent and darkens the
-    ones that do, as ``fit`` repairs a fitted material."""
+    Sampling and view averaging can land on latents that gain energy (with the shipped
+    decoder about half the texels sit just over the bound, as their references do):
+    ``fit.guard`` measures each distinct latent and darkens the ones that do, as ``fit``
+    repairs a fitted material."""
     from ..neural import fit, weights
 
     unique, inverse = np.unique(latents.reshape(-1, latents.shape[-1]), axis=0, return_inverse=True)

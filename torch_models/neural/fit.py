@@ -317,9 +317,13 @@ def furnace(model: NeuralModel, z: Tensor, n: int = 1024, seed: int = 0,
     """
     scale = torch.ones(len(z)) if energy_scale is None else energy_scale
     albedos, std_errors = _furnace_pass(model, z, n, seed, scale)
-    again = _significant_gain(albedos, std_errors).any(1).nonzero(as_tuple=True)[0]
+    flagged = _significant_gain(albedos, std_errors)
+    again = flagged.any(1).nonzero(as_tuple=True)[0]
     if confirm > 1 and len(again):
-        albedos[again], std_errors[again] = _furnace_pass(model, z[again], confirm * n, seed + 1, scale[again])
+        angles = flagged[again]  # only the view angles that gained: the others passed their test
+        a2, s2 = _furnace_pass(model, z[again], confirm * n, seed + 1, scale[again], angles)
+        albedos[again] = torch.where(angles, a2, albedos[again])
+        std_errors[again] = torch.where(angles, s2, std_errors[again])
     sums = half_vector_albedo(model, z) if quadrature is None else quadrature
     return Furnace(albedos, std_errors, sums.diffuse, sums.albedo(scale))
 
@@ -408,10 +412,12 @@ def _summed_albedo(model: NeuralModel, z: Tensor, wi: Tensor, wo: Tensor, weight
 
 
 def _furnace_pass(model: NeuralModel, z: Tensor, n: int, seed: int, scale: Tensor,
-                  chunk: int = 1 << 18) -> tuple[Tensor, Tensor]:
+                  angles: Tensor | None = None, chunk: int = 1 << 18) -> tuple[Tensor, Tensor]:
     """One Monte Carlo furnace estimate, (K, A) albedos of the brightest channel and their
     standard errors: n wo per latent and view angle from an equal mixture of the cosine
-    lobe and the latent's own sampling decoder, weighted by the mixture pdf.
+    lobe and the latent's own sampling decoder, weighted by the mixture pdf. With
+    ``angles`` (K, A) bool, only those (latent, view angle) pairs are estimated (the
+    rest are left 0).
 
     Cosine samples alone rarely land in a narrow peak, so an estimate could miss it,
     pass, and a fresh one find it: the mixture follows the peak, and the cosine half
@@ -422,9 +428,11 @@ def _furnace_pass(model: NeuralModel, z: Tensor, n: int, seed: int, scale: Tenso
     with torch.no_grad():
         for a, mu in enumerate(VIEW_COSINES):
             wi = view_directions(torch.tensor([[mu]]))
-            for k0 in range(0, len(z), per_chunk):
-                zk = z[k0:k0 + per_chunk].repeat_interleave(n, 0)
-                m = len(zk) // n
+            rows = torch.arange(len(z)) if angles is None else angles[:, a].nonzero(as_tuple=True)[0]
+            for k0 in range(0, len(rows), per_chunk):
+                idx = rows[k0:k0 + per_chunk]
+                zk = z[idx].repeat_interleave(n, 0)
+                m = len(idx)
                 wi_k = wi.expand(m * n, 3)
                 pick = torch.rand(m * n, 1, generator=gen) < 0.5
                 wo = torch.where(pick, cosine_hemisphere(m * n, gen),
@@ -433,10 +441,10 @@ def _furnace_pass(model: NeuralModel, z: Tensor, n: int, seed: int, scale: Tenso
                 pdf = 0.5 * cos_o[:, 0] / math.pi + 0.5 * model.sampler.pdf(zk, wi_k, wo)
                 f, t, _ = model.decoder(zk, wi_k, wo)
                 # f and cos_o are 0 below the horizon, the only place the mixture's pdf can be 0
-                value = f * scale[k0:k0 + m].repeat_interleave(n, 0)[:, None] + t * cos_o / math.pi
+                value = f * scale[idx].repeat_interleave(n, 0)[:, None] + t * cos_o / math.pi
                 est = (value / pdf.clamp(min=1e-12)[:, None]).reshape(m, n, 3)
                 channel = est.mean(1).argmax(1)  # the brightest channel must stay <= 1
                 est = est.gather(2, channel[:, None, None].expand(m, n, 1))[..., 0]
-                albedos[k0:k0 + m, a] = est.mean(1)
-                std_errors[k0:k0 + m, a] = est.std(1) / math.sqrt(n)
+                albedos[idx, a] = est.mean(1)
+                std_errors[idx, a] = est.std(1) / math.sqrt(n)
     return albedos, std_errors
