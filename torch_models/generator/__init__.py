@@ -5,5 +5,5 @@
 # Here, torch-free, so that the CLI's --help reads them without importing torch.
 DEFAULT_STEPS = 18
 DEFAULT_VIEWS = 12
-DEFAULT_SAMPLES = 2
+DEFAULT_SAMPLES = 4
 DEFAULT_TEXTURE_SIZE = 64  # latent texture side when the input's base colour is constant or larger
