@@ -188,6 +188,24 @@ def test_energy_guard_darkens_only_the_texels_that_gain_energy() -> None:
     assert not fresh.failing.any()
 
 
+def test_energy_guard_holds_the_quadrature_to_one_below_the_fits_tolerance() -> None:
+    """A texel just over 1 (under the fit check's quadrature tolerance) still gains energy
+    in a render: the guard darkens it until the quadrature reads 1 at most."""
+    from torch_models.generator.generate import energy_guard
+    from torch_models.neural import fit, weights
+    from torch_models.neural.data import parameter_vectors
+
+    model = weights.load()
+    with torch.no_grad():
+        z = model.encoder(torch.from_numpy(parameter_vectors(256, np.random.default_rng(0))))
+    quadrature = fit.half_vector_albedo(model, z).albedo(torch.ones(len(z))).max(1).values
+    near = z[(quadrature > 1.0) & (quadrature <= 1.0 + fit.QUADRATURE_TOLERANCE)][:4]
+    assert len(near) == 4 and not fit.furnace(model, near).failing.any()  # the fit's check lets them pass
+    scale = torch.from_numpy(energy_guard(near.numpy()[None]).reshape(-1))
+    assert (scale < 1).all()
+    assert (fit.half_vector_albedo(model, near).albedo(scale).max(1).values <= 1.0 + 1e-6).all()
+
+
 def test_a_zero_residual_gives_back_the_uplift_prior(checkpoint, monkeypatch):
     """The generator refines the enhancement rules' uplift: with nothing to add, every seen or
     inpainted texel is the prior's latent (as half floats), and islands no view saw get the
