@@ -139,3 +139,35 @@ def test_new_decoder_against_a_runs_frozen_encoder(tmp_path: Path) -> None:
     assert before["decoder.net.0.weight"].shape[1] == 16 and after["decoder.net.0.weight"].shape[1] == 17
     assert load(tmp_path / "new").decoder.encoding == "half_log_slope"
     assert load(tmp_path / "base").decoder.encoding == "half"
+
+
+def test_a_trainer_given_vectors_trains_on_those_alone(tmp_path: Path) -> None:
+    """The single-material capacity check: the pool is the given vectors, not a draw of the
+    enhancement rules, and one short run fits that material better than it started."""
+    from torch_models.neural.train import TrainConfig, Trainer
+
+    one = parameter_vectors(1, np.random.default_rng(7))
+    cfg = TrainConfig(**dict(TINY, width=16, depth=2, steps=60, sampler_steps=0, checkpoint_every=20))
+    trainer = Trainer(cfg, tmp_path / "run", vectors=np.repeat(one, 4, 0))
+    assert torch.equal(trainer.pool, torch.from_numpy(np.repeat(one, 4, 0)))
+    assert all(torch.equal(b.vectors, torch.from_numpy(one).expand(len(b.vectors), -1)) for b in trainer.buffer)
+    trainer.run()
+    losses = [h["loss"] for h in cfg.history]
+    assert losses[-1] < 0.7 * losses[0]
+
+
+def test_every_committed_config_loads_and_starts_inside_the_repository() -> None:
+    """A misspelt key or encoding in a committed config fails here, not an hour into a run;
+    a fine-tune's ``init`` names a run folder inside the checkout, never outside it."""
+    from torch_models.cli_train_decoder import CONFIGS
+    from torch_models.neural.networks import DIRECTION_ENCODINGS
+    from torch_models.neural.train import TrainConfig
+
+    repo = CONFIGS.parents[2]
+    paths = sorted(CONFIGS.glob("*.json"))
+    assert len(paths) >= 4
+    for path in paths:
+        cfg = TrainConfig.load(path)
+        assert cfg.encoding in DIRECTION_ENCODINGS and cfg.steps > 0, path.name
+        if cfg.init:
+            assert Path(cfg.init).is_relative_to(repo), (path.name, cfg.init)

@@ -221,7 +221,10 @@ class Trainer:
     Under ``torchrun`` each rank draws its own data (generators seeded with the
     rank) and rank 0 alone writes checkpoints."""
 
-    def __init__(self, cfg: TrainConfig, out: Path) -> None:
+    def __init__(self, cfg: TrainConfig, out: Path, vectors: np.ndarray | None = None) -> None:
+        """``vectors`` (K, 22) replaces the pool drawn from the enhancement rules: a decoder
+        of a few materials only, to tell what the network can represent from what the
+        shared latent space makes it give up (bench/single_material_decoder.py)."""
         self.cfg, self.out = cfg, out
         self.where = placement(cfg.device)
         torch.manual_seed(cfg.seed)
@@ -235,7 +238,8 @@ class Trainer:
         self.step = 0
         self.box: tuple[Tensor, Tensor] | None = None  # training latent box, set when phase 2 starts
         self.gen = torch.Generator().manual_seed(self._data_seed(0))
-        self.pool = torch.from_numpy(parameter_vectors(cfg.pool, np.random.default_rng(cfg.seed)))
+        drawn = parameter_vectors(cfg.pool, np.random.default_rng(cfg.seed)) if vectors is None else vectors
+        self.pool = torch.from_numpy(np.asarray(drawn, np.float32))
         self.buffer = [self._new_batch() for _ in range(cfg.buffer_batches)]
         if cfg.init:
             self._load(Path(cfg.init) / "weights.safetensors", cfg.init_networks)
