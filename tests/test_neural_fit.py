@@ -219,3 +219,27 @@ def test_neural_bsdf_samples_follow_its_pdf(tiny_weights: Path) -> None:
         f = bsdf.eval(wi.expand(2, 3), torch.tensor([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]))
     assert result.passed(0.01), result
     assert (f[1] == 0).all() and (f[0] > 0).all()
+
+
+def test_fitting_applies_the_decoders_angular_floor(tiny_weights: Path, tmp_path: Path) -> None:
+    """A run's floor and loss come with its weights, and fitting applies the floor: a near-mirror and the same
+    material at the floor get identical latents; without the floor they differ."""
+    import shutil
+
+    from torch_models.neural import weights
+    from torch_models.neural.data import angular_floor, parameter_vectors
+
+    model = weights.load(tiny_weights)
+    assert model.alpha_floor == 0.0
+    run = Path(shutil.copytree(tiny_weights, tmp_path / "run"))
+    state = json.loads((run / "state.json").read_text())
+    state["config"].update(alpha_floor=0.02, relative_weight=1.0)
+    (run / "state.json").write_text(json.dumps(state))
+    floored = weights.load(run)
+    assert (floored.alpha_floor, floored.relative_weight, model.relative_weight) == (0.02, 1.0, 0.0)
+    mirror = parameter_vectors(4, np.random.default_rng(5))
+    for name in ("alpha_core", "coat_alpha"):
+        mirror[:, fit.CHANNEL_SLICES[name]] = 1e-3
+    at_floor = angular_floor(mirror, 0.02).numpy()
+    assert torch.equal(fit.fit_latents(floored, mirror, 5), fit.fit_latents(floored, at_floor, 5))
+    assert not torch.equal(fit.fit_latents(model, mirror, 5), fit.fit_latents(model, at_floor, 5))

@@ -171,3 +171,44 @@ def test_every_committed_config_loads_and_starts_inside_the_repository() -> None
         assert cfg.encoding in DIRECTION_ENCODINGS and cfg.steps > 0, path.name
         if cfg.init:
             assert Path(cfg.init).is_relative_to(repo), (path.name, cfg.init)
+
+
+def test_angular_floor_raises_the_ggx_alphas_alone_and_the_trainer_draws_floored() -> None:
+    """Only the four GGX alphas move, and only those below the floor; a trainer with a floor
+    trains on floored vectors (targets and encoder inputs alike)."""
+    from torch_models.neural.data import GGX_ALPHAS, angular_floor
+    from torch_models.neural.train import TrainConfig, Trainer
+
+    v = parameter_vectors(300, np.random.default_rng(3))
+    floored = angular_floor(v, 0.01).numpy()
+    alphas = np.concatenate([np.arange(22)[CHANNEL_SLICES[n]] for n in GGX_ALPHAS])
+    others = np.setdiff1d(np.arange(22), alphas)
+    assert np.array_equal(floored[:, others], v[:, others])
+    assert (floored[:, alphas] >= 0.01).all() and (v[:, alphas] < 0.01).any()
+    above = v[:, alphas] >= 0.01
+    assert np.array_equal(floored[:, alphas][above], v[:, alphas][above])
+    assert np.array_equal(angular_floor(v, 0.0).numpy(), v)
+    trainer = Trainer(TrainConfig(**dict(TINY, alpha_floor=0.01)), Path("unused"), vectors=v)
+    assert torch.equal(trainer.pool, torch.from_numpy(floored))
+
+
+def test_relative_term_sees_a_broad_lobe_half_wrong() -> None:
+    """A decoder at half a broad lobe's value (f cos 0.05 against 0.1): log(1 + f cos) calls that
+    an error of 0.046, the relative term ln 2 minus what RELATIVE_EPS takes off; without its
+    weight the loss is the plain one, and an exact decoder scores zero in the term."""
+    from torch_models.neural.data import Batch
+    from torch_models.neural.train import RELATIVE_EPS, decoder_loss
+
+    n = 256
+    wi = torch.tensor([[0.0, 0.0, 1.0]]).expand(n, 3)
+    batch = Batch(torch.zeros(n, dtype=torch.long), torch.zeros(n, 22), wi, wi,
+                  torch.full((n, 3), 0.1), torch.zeros(n, 1), torch.full((n, 1), 0.5))
+    half = constant_decoder(8, 1, 0.05 * 2 * np.pi)
+    exact = constant_decoder(8, 1, 0.1 * 2 * np.pi)
+    z = torch.zeros(n, 6)
+    plain = float(decoder_loss(half, z, batch))
+    with_term = float(decoder_loss(half, z, batch, relative_weight=1.0))
+    expected = 0.95 * np.log((RELATIVE_EPS + 0.1) / (RELATIVE_EPS + 0.05))
+    assert abs(plain - 0.95 * np.log(1.1 / 1.05)) < 1e-4, plain  # T and R exact (0 and 0.5)
+    assert abs(with_term - plain - expected) < 1e-3, (with_term, plain)
+    assert abs(float(decoder_loss(exact, z, batch, relative_weight=1.0)) - float(decoder_loss(exact, z, batch))) < 1e-5

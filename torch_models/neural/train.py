@@ -45,11 +45,12 @@ from torch import Tensor, nn
 
 from ..brdf.model import LayeredBsdf, luminance, params_from_vectors
 from ..distributed import data_parallel, placement
-from .data import Batch, cosine_hemisphere, make_batch, parameter_vectors, view_directions
+from .data import Batch, angular_floor, cosine_hemisphere, make_batch, parameter_vectors, view_directions
 from .weights import load_networks
 from .networks import MAX_LOG_F, Decoder, Encoder, SamplingDecoder, saturation
 
 LOSS_WEIGHTS = (0.95, 0.04, 0.01)  # f, T, R (paper sec. 4)
+RELATIVE_EPS = 0.005  # f cos below this counts as zero in decoder_loss's relative term
 
 
 @dataclass
@@ -59,6 +60,8 @@ class TrainConfig:
     depth: int = 4
     encoding: str = "half"  # decoder direction encoding (networks.DIRECTION_ENCODINGS)
     pool: int = 20_000  # distinct parameter vectors drawn from the enhancement rules
+    alpha_floor: float = 0.0  # GGX alphas below this are trained (and fitted) as this (data.angular_floor)
+    relative_weight: float = 0.0  # decoder_loss's relative term, in training and in fitting
     buffer_batches: int = 8  # batches kept in memory, refreshed one at a time
     refresh_every: int = 4  # training steps per newly generated batch
     batch: int = 16_384
@@ -92,14 +95,24 @@ class TrainConfig:
         return cfg
 
 
-def decoder_loss(dec: Decoder, z: Tensor, batch: Batch, chroma_weight: float = TrainConfig.chroma_weight) -> Tensor:
-    """The training (and fitting) loss of latents z against a batch of analytic targets."""
+def decoder_loss(dec: Decoder, z: Tensor, batch: Batch, chroma_weight: float = TrainConfig.chroma_weight,
+                 relative_weight: float = 0.0) -> Tensor:
+    """The training (and fitting) loss of latents z against a batch of analytic targets.
+
+    ``relative_weight`` adds L1 in log(RELATIVE_EPS + f cos): log(1 + f cos) weighs an
+    error absolutely wherever f cos < 1, so a broad lobe of f cos ~ 0.05 (a metal's haze
+    or dust sheen, which lights the whole ball) can be half wrong at the cost of a
+    highlight's rounding; the term makes relative error count down to RELATIVE_EPS."""
     y, t, r = dec.log_forward(z, batch.wi, batch.wo)
-    err = y - torch.log1p(batch.f.clamp(max=math.expm1(MAX_LOG_F)))
+    target = batch.f.clamp(max=math.expm1(MAX_LOG_F))
+    err = y - torch.log1p(target)
     chroma = err - err.mean(-1, keepdim=True)
+    f_loss = err.abs().mean() + chroma_weight * chroma.pow(2).mean()
+    if relative_weight:
+        decoded = torch.expm1(y.clamp(max=MAX_LOG_F)).clamp(min=0.0)
+        f_loss = f_loss + relative_weight * ((RELATIVE_EPS + decoded).log() - (RELATIVE_EPS + target).log()).abs().mean()
     wf, wt, wr = LOSS_WEIGHTS
-    return (wf * (err.abs().mean() + chroma_weight * chroma.pow(2).mean())
-            + wt * (t - batch.t).abs().mean() + wr * (r - batch.r).abs().mean())
+    return wf * f_loss + wt * (t - batch.t).abs().mean() + wr * (r - batch.r).abs().mean()
 
 
 def sampler_loss(sampler: SamplingDecoder, dec: Decoder, z: Tensor, wi: Tensor, u: Tensor) -> Tensor:
@@ -185,7 +198,8 @@ class Objective(nn.Module):
         pre = self.encoder.pre_activation(batch.vectors)
         z = torch.tanh(pre)
         z = z + cfg.jitter * (2 * torch.rand(z.shape, generator=gen) - 1).to(z.device)
-        loss = decoder_loss(self.decoder, z, batch, cfg.chroma_weight) + cfg.saturation_weight * saturation(pre)
+        loss = (decoder_loss(self.decoder, z, batch, cfg.chroma_weight, cfg.relative_weight)
+                + cfg.saturation_weight * saturation(pre))
         if cfg.albedo_weight:
             k = cfg.albedo_materials
             loss = loss + cfg.albedo_weight * albedo_loss(self.decoder, z[:k], batch.vectors[:k], cfg.albedo_samples, gen)
@@ -239,7 +253,7 @@ class Trainer:
         self.box: tuple[Tensor, Tensor] | None = None  # training latent box, set when phase 2 starts
         self.gen = torch.Generator().manual_seed(self._data_seed(0))
         drawn = parameter_vectors(cfg.pool, np.random.default_rng(cfg.seed)) if vectors is None else vectors
-        self.pool = torch.from_numpy(np.asarray(drawn, np.float32))
+        self.pool = angular_floor(drawn, cfg.alpha_floor)
         self.buffer = [self._new_batch() for _ in range(cfg.buffer_batches)]
         if cfg.init:
             self._load(Path(cfg.init) / "weights.safetensors", cfg.init_networks)

@@ -20,6 +20,8 @@ class NeuralModel:
     decoder: Decoder
     sampler: SamplingDecoder
     digest: str  # sha256 of the weights file: which decoder a fitted material belongs to
+    alpha_floor: float = 0.0  # the training's angular floor, which fitting must apply too
+    relative_weight: float = 0.0  # the training loss's relative term, which fitting uses too
 
 
 def digest(folder: Path = SHIPPED) -> str:
@@ -56,4 +58,5 @@ def load(folder: Path = SHIPPED) -> NeuralModel:
     load_networks(weights, nets)
     for net in nets.values():
         net.eval().requires_grad_(False)
-    return NeuralModel(nets["encoder"], nets["decoder"], nets["sampler"], digest(folder))
+    return NeuralModel(nets["encoder"], nets["decoder"], nets["sampler"], digest(folder),
+                       cfg.get("alpha_floor", 0.0), cfg.get("relative_weight", 0.0))
