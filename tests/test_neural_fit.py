@@ -226,6 +226,7 @@ def test_fitting_applies_the_decoders_angular_floor(tiny_weights: Path, tmp_path
     material at the floor get identical latents; without the floor they differ."""
     import shutil
 
+    from richmat_addon.core.schema import CHANNEL_SLICES
     from torch_models.neural import weights
     from torch_models.neural.data import angular_floor, parameter_vectors
 
@@ -239,7 +240,7 @@ def test_fitting_applies_the_decoders_angular_floor(tiny_weights: Path, tmp_path
     assert (floored.alpha_floor, floored.relative_weight, model.relative_weight) == (0.02, 1.0, 0.0)
     mirror = parameter_vectors(4, np.random.default_rng(5))
     for name in ("alpha_core", "coat_alpha"):
-        mirror[:, fit.CHANNEL_SLICES[name]] = 1e-3
+        mirror[:, CHANNEL_SLICES[name]] = 1e-3
     at_floor = angular_floor(mirror, 0.02).numpy()
     assert torch.equal(fit.fit_latents(floored, mirror, 5), fit.fit_latents(floored, at_floor, 5))
     assert not torch.equal(fit.fit_latents(model, mirror, 5), fit.fit_latents(model, at_floor, 5))

@@ -82,6 +82,11 @@ def saturation(pre_activation: Tensor) -> Tensor:
     return torch.relu(pre_activation.abs() - SATURATION).pow(2).mean()
 
 
+def f_cos(y: Tensor) -> Tensor:
+    """f_neu * cos from the decoder's log output y = log(1 + f * cos), clamped at the ceiling."""
+    return (torch.exp(y.clamp(max=MAX_LOG_F)) - 1.0).clamp(min=0.0)
+
+
 class Decoder(nn.Module):
     """f_neu * cos (N, 3), T (N, 1), R (N, 1) from latents (N, 6) and directions (N, 3)."""
 
@@ -100,7 +105,7 @@ class Decoder(nn.Module):
     def forward(self, latent: Tensor, wi: Tensor, wo: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         y, t, r = self.log_forward(latent, wi, wo)
         above = ((wi[:, 2:3] > 0) & (wo[:, 2:3] > 0)).to(y.dtype)
-        return (torch.exp(y.clamp(max=MAX_LOG_F)) - 1.0).clamp(min=0.0) * above, t, r
+        return f_cos(y) * above, t, r
 
 
 def _tanh_approx(x: Tensor) -> Tensor:

@@ -47,7 +47,7 @@ from ..brdf.model import LayeredBsdf, luminance, params_from_vectors
 from ..distributed import data_parallel, placement
 from .data import Batch, angular_floor, cosine_hemisphere, make_batch, parameter_vectors, view_directions
 from .weights import load_networks
-from .networks import MAX_LOG_F, Decoder, Encoder, SamplingDecoder, saturation
+from .networks import MAX_LOG_F, Decoder, Encoder, SamplingDecoder, f_cos, saturation
 
 LOSS_WEIGHTS = (0.95, 0.04, 0.01)  # f, T, R (paper sec. 4)
 RELATIVE_EPS = 0.005  # f cos below this counts as zero in decoder_loss's relative term
@@ -109,8 +109,8 @@ def decoder_loss(dec: Decoder, z: Tensor, batch: Batch, chroma_weight: float = T
     chroma = err - err.mean(-1, keepdim=True)
     f_loss = err.abs().mean() + chroma_weight * chroma.pow(2).mean()
     if relative_weight:
-        decoded = torch.expm1(y.clamp(max=MAX_LOG_F)).clamp(min=0.0)
-        f_loss = f_loss + relative_weight * ((RELATIVE_EPS + decoded).log() - (RELATIVE_EPS + target).log()).abs().mean()
+        relative = (RELATIVE_EPS + f_cos(y)).log() - (RELATIVE_EPS + target).log()
+        f_loss = f_loss + relative_weight * relative.abs().mean()
     wf, wt, wr = LOSS_WEIGHTS
     return wf * f_loss + wt * (t - batch.t).abs().mean() + wr * (r - batch.r).abs().mean()
 
