@@ -40,9 +40,9 @@ from agreement_cases import cases  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.data import make_batch  # noqa: E402
 from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference  # noqa: E402
-from torch_models.neural.fit import FIT_BATCH, fit_latents  # noqa: E402
+from torch_models.neural.fit import FIT_BATCH, fit_latents, fitting_loss, fitting_pool  # noqa: E402
 from torch_models.neural.networks import LATENT  # noqa: E402
-from torch_models.neural.train import decoder_loss, lobe_samples  # noqa: E402
+from torch_models.neural.train import lobe_samples  # noqa: E402
 
 TARGET_MEDIAN, TARGET_WORST = 0.05, 0.12
 STARTS = 8
@@ -82,12 +82,12 @@ def albedo_penalty(model: weights.NeuralModel, vectors: Tensor, weight: float, v
 
 def held_out_loss(model: weights.NeuralModel, vectors: np.ndarray, z: Tensor, seed: int = 99) -> np.ndarray:
     """(K,) the fitting loss of each latent on fresh samples of its own material."""
-    gen, pool = torch.Generator().manual_seed(seed), torch.from_numpy(vectors)
+    gen, pool = torch.Generator().manual_seed(seed), fitting_pool(model, vectors)
     losses = []
     for k in range(len(pool)):
         batch = make_batch(pool[k:k + 1], 8192, gen)
         with torch.no_grad():
-            losses.append(decoder_loss(model.decoder, z[k].expand(len(batch.wi), LATENT), batch).item())
+            losses.append(fitting_loss(model, z[k].expand(len(batch.wi), LATENT), batch).item())
     return np.array(losses)
 
 

@@ -27,7 +27,7 @@ import torch
 from torch import Tensor
 
 from richmat_addon.core.schema import CHANNEL_SLICES, PARAMS
-from .data import angular_floor, cosine_hemisphere, make_batch, view_directions
+from .data import Batch, angular_floor, cosine_hemisphere, make_batch, view_directions
 from .networks import normalise_params
 from .train import decoder_loss
 from .weights import NeuralModel
@@ -94,6 +94,16 @@ def read_vectors(folder: Path) -> MaterialVectors:
     return MaterialVectors(shape, representatives, texel_rep, len(exact))
 
 
+def fitting_pool(model: NeuralModel, vectors: np.ndarray) -> Tensor:
+    """(K, 22) vectors as ``model`` was trained to draw them (its angular floor applied)."""
+    return angular_floor(vectors, model.alpha_floor)
+
+
+def fitting_loss(model: NeuralModel, z: Tensor, batch: Batch) -> Tensor:
+    """The loss ``model`` was trained with (its relative term included), which fitting minimises."""
+    return decoder_loss(model.decoder, z, batch, relative_weight=model.relative_weight)
+
+
 def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int = FIT_BATCH, seed: int = 0,
                 start: Tensor | None = None, progress=None,  # type: ignore[no-untyped-def]
                 penalty: Callable[[int, Tensor], Tensor] | None = None) -> Tensor:
@@ -104,7 +114,7 @@ def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int 
     ``penalty(step, z)`` is added to the loss: a way to try other objectives
     (bench/fit_limits.py) without a second optimisation loop.
     """
-    pool = angular_floor(vectors, model.alpha_floor)
+    pool = fitting_pool(model, vectors)
     with torch.no_grad():
         z0 = model.encoder(pool) if start is None else start
     z = z0.clone().requires_grad_(True)
@@ -114,7 +124,7 @@ def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int 
     with deterministic():
         for step in range(steps):
             b = buffer[step % len(buffer)]
-            loss = decoder_loss(model.decoder, z[b.index], b, relative_weight=model.relative_weight)
+            loss = fitting_loss(model, z[b.index], b)
             if penalty is not None:
                 loss = loss + penalty(step, z)
             opt.zero_grad()
@@ -285,7 +295,7 @@ def fit_bounded(model: NeuralModel, vectors: np.ndarray, z: Tensor, seed: int = 
 def _refit(model: NeuralModel, vectors: np.ndarray, z0: Tensor, steps: int, seed: int) -> Tensor:
     """``steps`` Adam steps on the fitting loss plus the summed albedo excess over ``REFIT_TARGET``
     at ``VIEW_COSINES`` (a coarse half-vector quadrature) of up to ``REFIT_LATENTS`` latents."""
-    pool = angular_floor(vectors, model.alpha_floor)
+    pool = fitting_pool(model, vectors)
     gen = torch.Generator().manual_seed(seed + 104_729)
     buffer = [make_batch(pool, FIT_BATCH, gen) for _ in range(min(steps, FIT_BUFFER))]
     nodes = [half_vector_nodes(mu, *REFIT_GRID) for mu in VIEW_COSINES]
@@ -297,7 +307,7 @@ def _refit(model: NeuralModel, vectors: np.ndarray, z0: Tensor, steps: int, seed
             pick = torch.randperm(len(z), generator=gen)[:REFIT_LATENTS]
             excess = sum(torch.relu(_summed_albedo(model, z[pick], wi, wo, w).albedo() - REFIT_TARGET)
                          for wi, wo, w in nodes)
-            loss = decoder_loss(model.decoder, z[b.index], b, relative_weight=model.relative_weight) + excess.mean()
+            loss = fitting_loss(model, z[b.index], b) + excess.mean()
             opt.zero_grad()
             loss.backward()
             opt.step()
