@@ -26,7 +26,8 @@ sys.path[:0] = [str(REPO), str(REPO / "bench")]
 from agreement_cases import cases  # noqa: E402
 from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.fit import fit_latents, half_vector_nodes  # noqa: E402
+from torch_models.neural.fitting import fit_latents  # noqa: E402
+from torch_models.neural.quadrature import half_vector_nodes  # noqa: E402
 
 VIEW_COSINES = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2, 0.15, 0.1, 0.05)
 

@@ -3,7 +3,7 @@
 For each real asset (../shared/assets/models/*.glb), every material is enhanced
 (Type auto, seed S) at its textures' own resolution and its texel vectors are
 counted: all texels, exact-distinct vectors, and representatives after the
-clustering of ``fit.read_vectors`` (each texel within 1/512 of its
+clustering of ``material_vectors.read_vectors`` (each texel within 1/512 of its
 representative per normalised parameter). At a fixed budget of samples per
 fitted vector, a fit's decoder evaluations are proportional to the number of
 vectors fitted, so the ratio texels / representatives is the saving.
@@ -35,7 +35,8 @@ from torch_models.cli import main as cli  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.bsdf import NeuralBsdf  # noqa: E402
 from torch_models.neural.evaluate import DEFAULT_PROBE, compare  # noqa: E402
-from torch_models.neural.fit import MaterialVectors, fit_latents, read_exr, read_vectors  # noqa: E402
+from torch_models.neural.material_vectors import MaterialVectors, read_exr, read_vectors  # noqa: E402
+from torch_models.neural.fitting import fit_latents  # noqa: E402
 from torch_models.render.ball import shade_gbuffer  # noqa: E402
 from torch_models.render.envmap import EnvMap  # noqa: E402
 from torch_models.render.tonemap import agx  # noqa: E402

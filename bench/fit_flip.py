@@ -29,7 +29,7 @@ sys.path[:0] = [str(REPO), str(REPO / "bench")]
 from agreement_cases import cases  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.evaluate import BallSetup, fit_and_compare, reference_furnace, side_by_side  # noqa: E402
-from torch_models.neural.fit import QUADRATURE_TOLERANCE  # noqa: E402
+from torch_models.neural.energy import QUADRATURE_TOLERANCE  # noqa: E402
 
 PAPER = {0: (0.0487, 0.0920, 0.1871), 1: (0.0312, 0.0727, 0.1670), 2: (0.0649, 0.0858, 0.1192),
          3: (0.0554, 0.0877, 0.1664), 4: (0.0276, 0.0643, 0.1705), 5: (0.0454, 0.0807, 0.1754)}

@@ -40,9 +40,9 @@ from agreement_cases import cases  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.data import make_batch  # noqa: E402
 from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference  # noqa: E402
-from torch_models.neural.fit import FIT_BATCH, fit_latents, fitting_loss, fitting_pool  # noqa: E402
+from torch_models.neural.fitting import FIT_BATCH, fit_latents, fitting_loss, fitting_pool  # noqa: E402
 from torch_models.neural.networks import LATENT  # noqa: E402
-from torch_models.neural.train import lobe_samples  # noqa: E402
+from torch_models.neural.loss import lobe_samples  # noqa: E402
 
 TARGET_MEDIAN, TARGET_WORST = 0.05, 0.12
 STARTS = 8

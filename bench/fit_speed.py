@@ -31,7 +31,7 @@ sys.path[:0] = [str(REPO), str(REPO / "bench")]
 from agreement_cases import cases  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference  # noqa: E402
-from torch_models.neural.fit import FIT_BATCH, fit_latents  # noqa: E402
+from torch_models.neural.fitting import FIT_BATCH, fit_latents  # noqa: E402
 from torch_models.neural.networks import LATENT  # noqa: E402
 
 STEPS = (0, 25, 50, 100, 200, 400, 800)

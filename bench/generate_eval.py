@@ -48,7 +48,7 @@ from torch_models.generator import generate as gen  # noqa: E402
 from torch_models.generator.dit import LatentGenerator  # noqa: E402
 from torch_models.generator.mesh_input import MeshInput  # noqa: E402
 from torch_models.generator.train import CorpusConfig, GeneratorTrainConfig, load_corpus  # noqa: E402
-from torch_models.neural import fit, weights  # noqa: E402
+from torch_models.neural import energy, weights  # noqa: E402
 from torch_models.render.flip import mean_flip  # noqa: E402
 from torch_models.render.tonemap import agx  # noqa: E402
 
@@ -129,8 +129,8 @@ def invalid_share(latents: np.ndarray, energy_scale: np.ndarray, sample: int = 5
     if len(packed) > sample:
         packed = packed[torch.randperm(len(packed), generator=torch.Generator().manual_seed(0))[:sample]]
     model = weights.load()
-    raw = fit.furnace(model, packed[:, :6]).failing
-    written = fit.furnace(model, packed[:, :6], seed=1, energy_scale=packed[:, 6]).failing
+    raw = energy.furnace(model, packed[:, :6]).failing
+    written = energy.furnace(model, packed[:, :6], seed=1, energy_scale=packed[:, 6]).failing
     return float(raw.float().mean()), float(written.float().mean())
 
 

@@ -28,7 +28,8 @@ from richmat_addon.core.schema import CHANNEL_SLICES  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.bsdf import NeuralBsdf  # noqa: E402
 from torch_models.neural.evaluate import BallSetup  # noqa: E402
-from torch_models.neural.fit import fit_latents, furnace  # noqa: E402
+from torch_models.neural.fitting import fit_latents  # noqa: E402
+from torch_models.neural.energy import furnace  # noqa: E402
 from torch_models.neural.glints import GlintPattern, Glints  # noqa: E402
 from torch_models.render.ball import render_ball  # noqa: E402
 from torch_models.render.tonemap import agx  # noqa: E402

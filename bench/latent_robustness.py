@@ -32,7 +32,8 @@ sys.path[:0] = [str(REPO), str(REPO / "bench")]
 from agreement_cases import cases  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference  # noqa: E402
-from torch_models.neural.fit import fit_latents, guard  # noqa: E402
+from torch_models.neural.fitting import fit_latents  # noqa: E402
+from torch_models.neural.energy import guard  # noqa: E402
 from torch_models.neural.validity import Validity, check_latents, enlarged, training_latent_box  # noqa: E402
 
 NOISE = 0.05

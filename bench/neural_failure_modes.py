@@ -51,7 +51,8 @@ from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors 
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.evaluate import (BallSetup, Comparison, compare, render_neural,  # noqa: E402
                                           render_reference, side_by_side)
-from torch_models.neural.fit import REFIT_STEPS, fit_bounded, fit_latents  # noqa: E402
+from torch_models.neural.energy import REFIT_STEPS, fit_bounded  # noqa: E402
+from torch_models.neural.fitting import fit_latents  # noqa: E402
 from torch_models.neural.weights import NeuralModel  # noqa: E402
 from torch_models.render.camera import hit_sphere, primary_rays  # noqa: E402
 

@@ -1,7 +1,6 @@
 """Generate Material in Blender: poll, the backend run on a tiny checkpoint, assignment and preview."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)

@@ -9,7 +9,6 @@ input, ``flaky`` crashes once, anything else succeeds after RENDER_SECONDS.
 """
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess

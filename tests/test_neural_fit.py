@@ -13,7 +13,7 @@ from richmat_addon.core.enhance import enhance
 from richmat_addon.core.maps import ParamMap, PbrInputs
 from torch_models.cli import main
 from torch_models.cli_enhance import write_material
-from torch_models.neural import fit
+from torch_models.neural import energy, fitting, loss, material_vectors, quadrature
 from tests.test_cli_enhance import read_exr
 from tests.test_neural_training import TINY
 
@@ -37,7 +37,7 @@ def textured(tmp_path: Path) -> Path:
 
 def test_fit_writes_latent_textures_and_fits_each_vector_once(tiny_weights: Path, textured: Path,
                                                               tmp_path: Path) -> None:
-    vectors = fit.read_vectors(textured)
+    vectors = material_vectors.read_vectors(textured)
     assert vectors.shape == (8, 8) and len(vectors.inverse) == 64
     assert len(vectors.unique) <= vectors.exact_unique <= 64
     out = tmp_path / "fit"
@@ -61,19 +61,19 @@ def test_latents_that_gain_energy_are_refitted_under_the_bound() -> None:
 
     model = weights.load()
     box = torch.rand(256, 6, generator=torch.Generator().manual_seed(0)) * 2.2 - 1.1
-    first = fit.furnace(model, box)
+    first = energy.furnace(model, box)
     gaining = box[first.failing & (first.quadrature.max(1).values > 1.05)][:6]
     assert len(gaining) >= 3
     vectors = parameter_vectors(len(gaining), np.random.default_rng(0))
-    bounded = fit.fit_bounded(model, vectors, gaining)
+    bounded = energy.fit_bounded(model, vectors, gaining)
     counts = bounded.counts()
     assert bounded.refitted.all() and counts["passed_as_fitted"] == 0
     assert counts["passed_after_refit"] >= 1
     assert counts["passed_after_refit"] + counts["repaired_by_scaling"] == len(gaining)
-    before = fit.furnace(model, gaining).quadrature.max(1).values
+    before = energy.furnace(model, gaining).quadrature.max(1).values
     assert (bounded.check.quadrature.max(1).values < before).all()
     scale = bounded.check.energy_scale()
-    assert not fit.furnace(model, bounded.z, n=2048, seed=5, energy_scale=scale).failing.any()
+    assert not energy.furnace(model, bounded.z, n=2048, seed=5, energy_scale=scale).failing.any()
 
 
 def test_fit_is_bit_reproducible_with_threads(tiny_weights: Path) -> None:
@@ -85,7 +85,7 @@ def test_fit_is_bit_reproducible_with_threads(tiny_weights: Path) -> None:
     vectors = parameter_vectors(256, np.random.default_rng(0))
     torch.set_num_threads(2)
     try:
-        runs = {fit.fit_latents(model, vectors, 3).numpy().tobytes() for _ in range(4)}
+        runs = {fitting.fit_latents(model, vectors, 3).numpy().tobytes() for _ in range(4)}
     finally:
         torch.set_num_threads(threads)
     assert len(runs) == 1
@@ -106,8 +106,8 @@ def test_a_fit_penalty_joins_the_loss(tiny_weights: Path) -> None:
         calls.append(step)
         return 100.0 * (z - target).pow(2).sum()
 
-    plain = fit.fit_latents(model, vectors, 40)
-    pulled = fit.fit_latents(model, vectors, 40, penalty=pull)
+    plain = fitting.fit_latents(model, vectors, 40)
+    pulled = fitting.fit_latents(model, vectors, 40, penalty=pull)
     assert calls == list(range(40))
     assert (pulled - target).abs().max() < 0.1 < (plain - target).abs().max()
 
@@ -126,7 +126,7 @@ def test_constant_material_stays_one_vector(tiny_weights: Path, tmp_path: Path) 
 def test_interrupted_fit_resumes(tiny_weights: Path, textured: Path, tmp_path: Path,
                                  monkeypatch: pytest.MonkeyPatch) -> None:
     calls = {"n": 0}
-    real = fit.decoder_loss
+    real = loss.decoder_loss
 
     def interrupting(*args, **kwargs):  # type: ignore[no-untyped-def]
         calls["n"] += 1
@@ -135,10 +135,10 @@ def test_interrupted_fit_resumes(tiny_weights: Path, textured: Path, tmp_path: P
         return real(*args, **kwargs)
 
     out = tmp_path / "fit"
-    monkeypatch.setattr(fit, "decoder_loss", interrupting)
+    monkeypatch.setattr(fitting, "decoder_loss", interrupting)
     assert main(["fit", str(textured), "--out", str(out), "--weights", str(tiny_weights), "--steps", "6"]) == 130
     assert (out / "fit_state.safetensors").exists() and not (out / "neural.json").exists()
-    monkeypatch.setattr(fit, "decoder_loss", real)
+    monkeypatch.setattr(fitting, "decoder_loss", real)
     assert main(["fit", str(textured), "--out", str(out), "--weights", str(tiny_weights), "--steps", "6",
                  "--resume"]) == 0
     assert (out / "neural.json").exists() and not (out / "fit_state.safetensors").exists()
@@ -155,7 +155,7 @@ def test_bad_folder_and_missing_weights_are_clear(tmp_path: Path, textured: Path
 def test_furnace_repair_scales_only_what_fails() -> None:
     # Three latents at two view angles: the first gains energy at one angle, the
     # third at both (the tighter bound wins), the second never.
-    check = fit.Furnace(albedos=torch.tensor([[1.2, 0.8], [0.9, 0.95], [1.1, 1.05]]),
+    check = energy.Furnace(albedos=torch.tensor([[1.2, 0.8], [0.9, 0.95], [1.1, 1.05]]),
                         std_errors=torch.full((3, 2), 0.01),
                         transmissions=torch.tensor([[0.5, 0.4], [0.3, 0.3], [0.6, 0.9]]),
                         quadrature=torch.tensor([[1.0, 0.8], [0.9, 0.95], [1.1, 1.04]]))
@@ -163,25 +163,25 @@ def test_furnace_repair_scales_only_what_fails() -> None:
     assert torch.allclose(check.albedo, torch.tensor([1.2, 0.95, 1.1]))
     exact = torch.tensor([0.5 / 0.73, 1.0, min(0.4 / 0.53, 0.1 / 0.18)])  # F at its 3-sigma bound
     scale = check.energy_scale()
-    assert ((exact - fit.SCALE_STEP < scale) & (scale <= exact)).all()  # rounded down to the grid
-    assert torch.equal(scale, torch.round(scale / fit.SCALE_STEP) * fit.SCALE_STEP)
-    noisy = fit.Furnace(check.albedos * (1 + 1e-6), check.std_errors, check.transmissions, check.quadrature)
+    assert ((exact - energy.SCALE_STEP < scale) & (scale <= exact)).all()  # rounded down to the grid
+    assert torch.equal(scale, torch.round(scale / energy.SCALE_STEP) * energy.SCALE_STEP)
+    noisy = energy.Furnace(check.albedos * (1 + 1e-6), check.std_errors, check.transmissions, check.quadrature)
     assert torch.equal(noisy.energy_scale(), scale)  # float noise does not reach the written map
     upper = check.albedos + 3 * check.std_errors - check.transmissions
     repaired = check.energy_scale()[:, None] * upper + check.transmissions
     assert (repaired <= 1.0 + 1e-6).all()
     # the quadrature alone can fail a latent that Monte Carlo passes (a lobe its samples missed)
-    narrow = fit.Furnace(albedos=torch.tensor([[0.5, 0.6]]), std_errors=torch.full((1, 2), 0.01),
+    narrow = energy.Furnace(albedos=torch.tensor([[0.5, 0.6]]), std_errors=torch.full((1, 2), 0.01),
                          transmissions=torch.tensor([[0.2, 0.2]]), quadrature=torch.tensor([[2.6, 0.6]]))
     assert narrow.failing.tolist() == [True] and float(narrow.albedo[0]) == pytest.approx(2.6)
-    assert float(narrow.energy_scale()[0]) == pytest.approx(0.8 / 2.4, abs=fit.SCALE_STEP)
+    assert float(narrow.energy_scale()[0]) == pytest.approx(0.8 / 2.4, abs=energy.SCALE_STEP)
     # without the margin, a lobe the quadrature puts 1 % over the bound loses that 1 %, not the
     # Monte Carlo error bar's 6 %; where Monte Carlo itself fails, its point estimate counts
-    at_bound = fit.Furnace(albedos=torch.tensor([[1.0], [1.2]]), std_errors=torch.full((2, 1), 0.02),
+    at_bound = energy.Furnace(albedos=torch.tensor([[1.0], [1.2]]), std_errors=torch.full((2, 1), 0.02),
                            transmissions=torch.full((2, 1), 0.5), quadrature=torch.tensor([[1.01], [1.01]]))
     assert at_bound.energy_scale(margin=False).tolist() == pytest.approx([0.5 / 0.51, 0.5 / 0.7],
-                                                                         abs=fit.SCALE_STEP)
-    assert at_bound.energy_scale().tolist() == pytest.approx([0.5 / 0.56, 0.5 / 0.76], abs=fit.SCALE_STEP)
+                                                                         abs=energy.SCALE_STEP)
+    assert at_bound.energy_scale().tolist() == pytest.approx([0.5 / 0.56, 0.5 / 0.76], abs=energy.SCALE_STEP)
 
 
 def test_furnace_recheck_of_repaired_latents_passes(tiny_weights: Path) -> None:
@@ -190,10 +190,10 @@ def test_furnace_recheck_of_repaired_latents_passes(tiny_weights: Path) -> None:
     model = load(tiny_weights)
     model.decoder.net[-1].bias[:3] += 1.0  # f * cos up by e: some latents now gain energy, the repair has work
     z = torch.rand(64, 6, generator=torch.Generator().manual_seed(3)) * 2 - 1
-    first = fit.furnace(model, z, n=1024)
+    first = energy.furnace(model, z, n=1024)
     assert first.failing.any()
-    again = fit.furnace(model, z, n=1024, seed=5, energy_scale=first.energy_scale())
-    assert again.albedos.shape == (64, len(fit.VIEW_COSINES))
+    again = energy.furnace(model, z, n=1024, seed=5, energy_scale=first.energy_scale())
+    assert again.albedos.shape == (64, len(quadrature.VIEW_COSINES))
     assert not again.failing.any()
 
 
@@ -242,5 +242,5 @@ def test_fitting_applies_the_decoders_angular_floor(tiny_weights: Path, tmp_path
     for name in ("alpha_core", "coat_alpha"):
         mirror[:, CHANNEL_SLICES[name]] = 1e-3
     at_floor = angular_floor(mirror, 0.02).numpy()
-    assert torch.equal(fit.fit_latents(floored, mirror, 5), fit.fit_latents(floored, at_floor, 5))
-    assert not torch.equal(fit.fit_latents(model, mirror, 5), fit.fit_latents(model, at_floor, 5))
+    assert torch.equal(fitting.fit_latents(floored, mirror, 5), fitting.fit_latents(floored, at_floor, 5))
+    assert not torch.equal(fitting.fit_latents(model, mirror, 5), fitting.fit_latents(model, at_floor, 5))

@@ -66,7 +66,7 @@ def constant_decoder(width: int, depth: int, albedo: float):  # type: ignore[no-
 
 
 def test_energy_penalty_measures_albedo_above_one() -> None:
-    from torch_models.neural.train import energy_penalty
+    from torch_models.neural.loss import energy_penalty
 
     gen = torch.Generator().manual_seed(0)
     z = torch.zeros(8, 6)
@@ -76,7 +76,8 @@ def test_energy_penalty_measures_albedo_above_one() -> None:
 
 
 def test_energy_phase_removes_energy_gain(tmp_path: Path) -> None:
-    from torch_models.neural.train import TrainConfig, Trainer, energy_penalty
+    from torch_models.neural.train import TrainConfig, Trainer
+    from torch_models.neural.loss import energy_penalty
 
     cfg = TrainConfig(**dict(TINY, width=16, depth=2, steps=0, energy_steps=80, energy_latents=64,
                              energy_samples=64, sampler_steps=0, checkpoint_every=100, lr_final=2e-3))
@@ -94,7 +95,7 @@ def test_albedo_loss_vanishes_for_the_analytic_model_and_sees_a_wrong_albedo() -
     """The importance-sampled albedo of the analytic lobes themselves matches R(wi): the pdf,
     the samples and the target agree; a decoder with the wrong energy scores far worse."""
     from torch_models.brdf.model import LayeredBsdf, params_from_vectors
-    from torch_models.neural.train import albedo_loss
+    from torch_models.neural.loss import albedo_loss
 
     vectors = torch.from_numpy(parameter_vectors(24, np.random.default_rng(4)))
     n = 2048
@@ -197,7 +198,7 @@ def test_relative_term_sees_a_broad_lobe_half_wrong() -> None:
     an error of 0.046, the relative term ln 2 minus what RELATIVE_EPS takes off; without its
     weight the loss is the plain one, and an exact decoder scores zero in the term."""
     from torch_models.neural.data import Batch
-    from torch_models.neural.train import RELATIVE_EPS, decoder_loss
+    from torch_models.neural.loss import RELATIVE_EPS, decoder_loss
 
     n = 256
     wi = torch.tensor([[0.0, 0.0, 1.0]]).expand(n, 3)

@@ -10,7 +10,7 @@ import torch
 
 from tests.test_neural_fit import tiny_weights  # noqa: F401  (fixture)
 from tests.test_neural_training import constant_decoder
-from torch_models.neural import fit, validity
+from torch_models.neural import energy, quadrature, validity
 from torch_models.neural.weights import NeuralModel, load
 
 
@@ -22,7 +22,7 @@ def _constant_model(tiny: NeuralModel, albedo: float) -> NeuralModel:
 
 def test_furnace_estimates_a_known_albedo(tiny_weights: Path) -> None:  # noqa: F811
     model = _constant_model(load(tiny_weights), 0.8)
-    check = fit.furnace(model, torch.rand(4, 6) * 2 - 1, n=4096)
+    check = energy.furnace(model, torch.rand(4, 6) * 2 - 1, n=4096)
     err = (check.albedos - 0.8).abs()
     assert (err < 4 * check.std_errors + 1e-3).all(), check.albedos
     # this f cos jumps to 0 at the horizon, which cuts through quadrature cells: 2.5 % (real f cos fades to 0 there)
@@ -34,13 +34,13 @@ def test_furnace_estimates_a_known_albedo(tiny_weights: Path) -> None:  # noqa: 
 def test_furnace_flags_and_repairs_energy_gain(tiny_weights: Path) -> None:  # noqa: F811
     model = _constant_model(load(tiny_weights), 1.5)
     z = torch.rand(6, 6) * 2 - 1
-    check = fit.furnace(model, z, n=2048)
+    check = energy.furnace(model, z, n=2048)
     assert check.failing.all()
     scale = check.energy_scale()
     assert ((scale > 0.6) & (scale <= 1 / 1.5)).all()  # just enough to bring 1.5 to 1
-    assert not fit.furnace(model, z, n=2048, seed=9, energy_scale=scale).failing.any()
-    guarded = fit.guard(model, z)
-    assert (guarded <= 1 / 1.5).all() and not fit.furnace(model, z, n=2048, seed=11, energy_scale=guarded).failing.any()
+    assert not energy.furnace(model, z, n=2048, seed=9, energy_scale=scale).failing.any()
+    guarded = energy.guard(model, z)
+    assert (guarded <= 1 / 1.5).all() and not energy.furnace(model, z, n=2048, seed=11, energy_scale=guarded).failing.any()
     # repaired to the point estimate and checked again: no darker than one repair with the error bar
     assert (guarded >= scale).all() and float(guarded.min()) > 1 / 1.5 - 0.02, guarded
 
@@ -48,7 +48,7 @@ def test_furnace_flags_and_repairs_energy_gain(tiny_weights: Path) -> None:  # n
 def test_half_vector_grid_resolves_a_near_mirror_lobe() -> None:
     # A GGX distribution integrates to 1 over projected half vectors; alpha 1e-3 is a
     # 0.06 degree lobe that a uniform grid of the same size would miss entirely.
-    h, d_omega = fit.half_vector_grid()
+    h, d_omega = quadrature.half_vector_grid()
     cos = h[:, 2].double()
     for alpha in (1e-3, 1e-2, 0.3, 1.0):
         a2 = alpha * alpha
@@ -68,7 +68,7 @@ def test_box_and_perturbed_latents_decode_finite_non_negative_and_guarded(tiny_w
         raw = validity.check_latents(model, z.detach(), pairs=64)
         assert raw.finite.all() and raw.non_negative.all()
         guarded = validity.check_latents(model, z.detach(), pairs=64, seed=3,
-                                         energy_scale=fit.guard(model, z.detach()))
+                                         energy_scale=energy.guard(model, z.detach()))
         assert guarded.valid.all()
 
 

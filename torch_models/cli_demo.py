@@ -77,15 +77,15 @@ def fit_and_compare(args: argparse.Namespace, materials: list) -> None:  # type:
 
     from .cli_fit import write_latents
     from .demo_render import neural_bsdf, render_neural_rows
-    from .neural import fit, weights
+    from .neural import energy, fitting, material_vectors, weights
 
     model = weights.load()
     rows = []
     for mat in tqdm(materials, desc="fit neural", unit="type"):
         folder = args.out / f"type_{mat.type}"
-        vectors = fit.read_vectors(folder)
-        z = fit.fit_latents(model, vectors.unique, args.fit_steps, seed=args.seed)
-        bounded = fit.fit_bounded(model, vectors.unique, z, seed=args.seed)
+        vectors = material_vectors.read_vectors(folder)
+        z = fitting.fit_latents(model, vectors.unique, args.fit_steps, seed=args.seed)
+        bounded = energy.fit_bounded(model, vectors.unique, z, seed=args.seed)
         z, check = bounded.z, bounded.check
         record = write_latents(folder / "neural", vectors, bounded)
         (folder / "neural" / "neural.json").write_text(json.dumps(dict(record, decoder_sha256=model.digest), indent=1))

@@ -21,9 +21,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # torch stays out of ``--help``
-    from torch import Tensor
 
-    from .neural.fit import BoundedFit, MaterialVectors
+    from .neural.energy import BoundedFit
+
+    from .neural.material_vectors import MaterialVectors
 
 HELP = "fit the latent textures of an enhanced material against the frozen decoder"
 
@@ -46,11 +47,11 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from .cli import InputError, atomic_path, emit, emit_done
-    from .neural import fit, weights
+    from .neural import energy, fitting, material_vectors, weights
 
     jsonl = args.progress == "jsonl"
     try:
-        mv = fit.read_vectors(args.material)
+        mv = material_vectors.read_vectors(args.material)
         model = weights.load(args.weights or weights.SHIPPED)
     except (ValueError, FileNotFoundError, KeyError) as exc:
         if jsonl:
@@ -74,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     with tqdm(total=args.steps, initial=done, desc=f"fit {len(mv.unique)} vectors", unit="step",
               disable=jsonl) as bar:
         try:
-            z = fit.fit_latents(model, mv.unique, max(0, args.steps - done), seed=args.seed + done,
+            z = fitting.fit_latents(model, mv.unique, max(0, args.steps - done), seed=args.seed + done,
                                 start=start, progress=progress)
         except KeyboardInterrupt:
             if latest["z"] is not None:
@@ -84,8 +85,8 @@ def run(args: argparse.Namespace) -> int:
             return 130
     # The energy refit gets no more steps than the fit had: a quick fit stays quick, and what the
     # short refit leaves over the bound is scaled, as the furnace check counts.
-    refit_steps = min(fit.REFIT_STEPS, args.steps)
-    record = write_latents(args.out, mv, fit.fit_bounded(model, mv.unique, z, seed=args.seed, steps=refit_steps))
+    refit_steps = min(energy.REFIT_STEPS, args.steps)
+    record = write_latents(args.out, mv, energy.fit_bounded(model, mv.unique, z, seed=args.seed, steps=refit_steps))
     record.update(decoder_sha256=model.digest, material=os.path.relpath(args.material, args.out),
                   steps=args.steps, refit_steps=refit_steps, final_loss=latest["loss"])
     with atomic_path(args.out / "neural.json") as tmp:
@@ -105,14 +106,14 @@ def write_latents(out: Path, mv: MaterialVectors, bounded: BoundedFit) -> dict:
     """Write the latent textures (and the energy scale where the furnace repaired) into
     ``out``; returns the record for neural.json (counts, furnace, the constant latent)."""
     from .cli_enhance import write_exr
-    from .neural import fit
+    from .neural import material_vectors
 
     out.mkdir(parents=True, exist_ok=True)
     z, check = bounded.z, bounded.check
     scale = check.energy_scale()
     record: dict = {"texels": int(len(mv.inverse)) if mv.shape else 1,
                     "exact_unique_vectors": mv.exact_unique, "fitted_vectors": len(mv.unique),
-                    "cluster_bound": f"each texel within {fit.QUANT / 2:g} of its representative "
+                    "cluster_bound": f"each texel within {material_vectors.QUANT / 2:g} of its representative "
                                      "per normalised parameter",
                     "furnace": dict(bounded.counts(), worst_albedo=float(check.albedo.max()))}
     if mv.shape is None:

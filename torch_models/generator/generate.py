@@ -147,12 +147,12 @@ def energy_guard(latents: np.ndarray) -> np.ndarray:
 
     Sampling and view averaging can land on latents that gain energy (with the shipped
     decoder about half the texels sit just over the bound, as their references do):
-    ``fit.guard`` measures each distinct latent and darkens the ones that do, as ``fit``
+    ``energy.guard`` measures each distinct latent and darkens the ones that do, as ``fit``
     repairs a fitted material."""
-    from ..neural import fit, weights
+    from ..neural import energy, weights
 
     unique, inverse = np.unique(latents.reshape(-1, latents.shape[-1]), axis=0, return_inverse=True)
-    scale = fit.guard(weights.load(), torch.from_numpy(unique))
+    scale = energy.guard(weights.load(), torch.from_numpy(unique))
     return scale.numpy()[inverse.reshape(-1)].reshape(latents.shape[:2])
 
 

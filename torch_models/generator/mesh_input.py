@@ -147,7 +147,7 @@ def use_baked_material(inp: MeshInput, folder: Path) -> None:
     metalness lets the prompt's type follow the enhancer's rule for metals."""
     import json
 
-    from ..neural.fit import read_exr
+    from ..neural.material_vectors import read_exr
 
     params_file = folder / "params.json"
     if not params_file.is_file():

@@ -23,7 +23,9 @@ from ..render.envmap import EnvMap
 from ..render.flip import flip_map
 from ..render.tonemap import agx
 from .bsdf import NeuralBsdf
-from .fit import VIEW_COSINES, BoundedFit, fit_bounded, fit_latents, half_vector_nodes
+from .quadrature import VIEW_COSINES, half_vector_nodes
+from .energy import BoundedFit, fit_bounded
+from .fitting import fit_latents
 from .weights import NeuralModel
 
 DEFAULT_PROBE = Path(__file__).resolve().parents[1] / "data" / "studio_small_03_512.hdr"

@@ -90,6 +90,9 @@ def f_cos(y: Tensor) -> Tensor:
 class Decoder(nn.Module):
     """f_neu * cos (N, 3), T (N, 1), R (N, 1) from latents (N, 6) and directions (N, 3)."""
 
+    kind = "mlp"
+    bounded = False  # some latents gain energy: fitted ones go through the furnace (energy.fit_bounded)
+
     def __init__(self, width: int = 64, depth: int = 4, encoding: str = "half") -> None:
         super().__init__()
         if encoding not in DIRECTION_ENCODINGS:

@@ -1,20 +1,16 @@
-"""Training of the universal encoder/decoder, then of the sampling decoder.
+"""Training of the universal encoder/decoder, then (MLP kind) of the sampling decoder.
 
-Phase 1 trains encoder and decoder together (an autoencoder through the BRDF):
-z = encoder(params) + U(-jitter, jitter), loss = 0.95 (L1(e) + c L2(e - mean_rgb e))
-+ 0.04 L1(T) + 0.01 L1(R), with e = the error of log(1 + f) per channel (f spans
-ten decades; targets clamped to the decoder's ceiling), plus a penalty on
-saturated encoder outputs (``networks.saturation``). The chroma term (weight c)
-is ours, not the paper's: while the grey error exceeds the colour difference,
-per-channel L1 gives all three channels the same sign of gradient, and a decoder
-trained with L1 alone decoded every metal grey (docs/neural-material.md).
-Phase 2 goes on with the same loss plus
+The run's config names the decoder kind (``decoders.KINDS``). Phase 1 trains
+encoder and decoder together (an autoencoder through the BRDF):
+z = encoder(params) + U(-jitter, jitter) and ``loss.decoder_loss``, plus a penalty
+on saturated encoder outputs (``networks.saturation``). Phase 2 (MLP) goes on with
 an energy penalty on latents no material maps to (uniform in the enlarged
-training latent box, and encoded latents perturbed by ten times the jitter):
-their white-furnace albedo above 1, so generated or edited latents do not gain
-energy. Phase 3 trains the sampling decoder against the frozen decoder's
-luminance with the score-function estimate of the forward KL divergence
-(Zeltner et al.; neural-notes sec. 1.2).
+training latent box, and encoded latents perturbed by ten times the jitter), so
+generated or edited latents do not gain energy. Phase 3 (MLP) trains the sampling
+decoder against the frozen decoder's luminance with the score-function estimate
+of the forward KL divergence (Zeltner et al.; neural-notes sec. 1.2). A hybrid
+decoder needs neither: it is energy-bounded by construction and samples its own
+lobes; its lobes' alpha floor is annealed over the first ``anneal`` of phase 1.
 
 The per-pair loss does not tie the integral of f_neu to the material's albedo,
 and a decoder trained with it alone kept 31 % of the analytic albedo at cos 0.1
@@ -43,21 +39,28 @@ import torch
 from safetensors.torch import save_file
 from torch import Tensor, nn
 
-from ..brdf.model import LayeredBsdf, luminance, params_from_vectors
 from ..distributed import data_parallel, placement
-from .data import Batch, angular_floor, cosine_hemisphere, make_batch, parameter_vectors, view_directions
+from .data import Batch, angular_floor, make_batch, parameter_vectors
+from .decoders import AnyDecoder, build_decoder, build_sampler
+from .hybrid import HybridDecoder
+from .loss import CHROMA_WEIGHT, albedo_loss, decoder_loss, energy_penalty, sampler_loss
+from .networks import Encoder, SamplingDecoder, saturation
+from .validity import enlarged
 from .weights import load_networks
-from .networks import MAX_LOG_F, Decoder, Encoder, SamplingDecoder, f_cos, saturation
-
-LOSS_WEIGHTS = (0.95, 0.04, 0.01)  # f, T, R (paper sec. 4)
-RELATIVE_EPS = 0.005  # f cos below this counts as zero in decoder_loss's relative term
 
 
 @dataclass
 class TrainConfig:
     seed: int = 0
+    kind: str = "mlp"  # decoders.KINDS: the paper's direct MLP, or analytic lobes gated by a small network
     width: int = 64
     depth: int = 4
+    lobes: int = 3  # hybrid: GGX lobes
+    head_width: int = 32  # hybrid: width of the lobe and mixture heads
+    gate_width: int = 32  # hybrid: the gate network
+    gate_depth: int = 2
+    lobe_alpha_floor: tuple[float, float] = (0.05, 1e-3)  # hybrid: the lobes' alpha floor, annealed from, to
+    anneal: float = 0.6  # hybrid: share of the decoder phase over which the floor falls (geometrically)
     encoding: str = "half"  # decoder direction encoding (networks.DIRECTION_ENCODINGS)
     pool: int = 20_000  # distinct parameter vectors drawn from the enhancement rules
     alpha_floor: float = 0.0  # GGX alphas below this are trained (and fitted) as this (data.angular_floor)
@@ -71,7 +74,7 @@ class TrainConfig:
     energy_weight: float = 1.0
     energy_latents: int = 256  # latents per penalty estimate, half uniform in the box, half perturbed
     energy_samples: int = 256  # cosine-sampled wo per latent
-    chroma_weight: float = 10.0
+    chroma_weight: float = CHROMA_WEIGHT
     saturation_weight: float = 0.1
     albedo_weight: float = 0.0  # 0 leaves the albedo term out
     albedo_materials: int = 64  # materials per albedo estimate, each at one random view angle
@@ -95,89 +98,12 @@ class TrainConfig:
         return cfg
 
 
-def decoder_loss(dec: Decoder, z: Tensor, batch: Batch, chroma_weight: float = TrainConfig.chroma_weight,
-                 relative_weight: float = 0.0) -> Tensor:
-    """The training (and fitting) loss of latents z against a batch of analytic targets.
-
-    ``relative_weight`` adds L1 in log(RELATIVE_EPS + f cos): log(1 + f cos) weighs an
-    error absolutely wherever f cos < 1, so a broad lobe of f cos ~ 0.05 (a metal's haze
-    or dust sheen, which lights the whole ball) can be half wrong at the cost of a
-    highlight's rounding; the term makes relative error count down to RELATIVE_EPS."""
-    y, t, r = dec.log_forward(z, batch.wi, batch.wo)
-    target = batch.f.clamp(max=math.expm1(MAX_LOG_F))
-    err = y - torch.log1p(target)
-    chroma = err - err.mean(-1, keepdim=True)
-    f_loss = err.abs().mean() + chroma_weight * chroma.pow(2).mean()
-    if relative_weight:
-        relative = (RELATIVE_EPS + f_cos(y)).log() - (RELATIVE_EPS + target).log()
-        f_loss = f_loss + relative_weight * relative.abs().mean()
-    wf, wt, wr = LOSS_WEIGHTS
-    return wf * f_loss + wt * (t - batch.t).abs().mean() + wr * (r - batch.r).abs().mean()
-
-
-def sampler_loss(sampler: SamplingDecoder, dec: Decoder, z: Tensor, wi: Tensor, u: Tensor) -> Tensor:
-    """-E[target / pdf * log pdf] with wo from the (detached) sampler: the forward KL's gradient."""
-    with torch.no_grad():
-        wo = sampler.sample(z, wi, u)
-        target = luminance(dec(z, wi, wo)[0]).squeeze(-1)
-    pdf = sampler.pdf(z, wi, wo)
-    ok = (wo[:, 2] > 0) & (pdf > 0)
-    weight = torch.where(ok, target / pdf.detach().clamp(min=1e-4), torch.zeros_like(target))
-    return -(weight * pdf.clamp(min=1e-4).log()).mean()
-
-
-def energy_penalty(dec: Decoder, z: Tensor, n: int, gen: torch.Generator) -> Tensor:
-    """Mean white-furnace gain, sum over channels of max(0, albedo - 1), of latents z (M, 6).
-
-    Each latent gets one view direction (cos theta in [0.05, 1]) and n cosine-sampled
-    wo; the albedo of f_neu + T * white Lambertian is estimated per channel.
-    """
-    m = len(z)
-    wi = view_directions(0.05 + 0.95 * torch.rand(m, 1, generator=gen)).repeat_interleave(n, 0)
-    wi, wo = wi.to(z.device), cosine_hemisphere(m * n, gen).to(z.device)
-    f, t, _ = dec(z.repeat_interleave(n, 0), wi, wo)
-    albedo = (f * (math.pi / wo[:, 2:3]) + t).reshape(m, n, 3).mean(1)
-    return torch.relu(albedo - 1.0).sum(-1).mean()
-
-
-def albedo_loss(dec: Decoder, z: Tensor, vectors: Tensor, n: int, gen: torch.Generator) -> Tensor:
-    """Squared relative error of the directional albedo (luminance) of f_neu at latents z (K, 6)
-    against the analytic R(wi) of their parameter vectors (K, 22), one random view angle each.
-
-    The albedo is estimated from n wo sampled from the analytic lobes (exact pdf): unbiased,
-    so the squared error's gradient is unbiased up to the estimate's variance, which the
-    0.05 in the denominator keeps from dominating dark materials."""
-    k, device = len(z), z.device
-    s = lobe_samples(vectors, n, gen)
-    with torch.no_grad():
-        target = s.bsdf.reflectance(s.wi)[::n, 0].to(device)
-    f, _, _ = dec(z.repeat_interleave(n, 0), s.wi.to(device), s.wo.to(device))
-    est = torch.where(s.ok.to(device), luminance(f)[:, 0] / s.pdf.clamp(min=1e-6).to(device), torch.zeros_like(f[:, 0]))
-    return (((est.reshape(k, n).mean(1) - target) / (target + 0.05)) ** 2).mean()
-
-
-@dataclass
-class LobeSamples:
-    """n outgoing directions per material, importance-sampled from its analytic lobes at one
-    random view angle: the material at every sample, wi and wo (K n, 3), the exact pdf
-    (K n,) and where the estimate may divide by it (above the horizon, pdf > 1e-6)."""
-
-    bsdf: LayeredBsdf
-    wi: Tensor
-    wo: Tensor
-    pdf: Tensor
-    ok: Tensor
-
-
-def lobe_samples(vectors: Tensor, n: int, gen: torch.Generator) -> LobeSamples:
-    """``LobeSamples`` of materials (K, 22), view cosines uniform in [0.05, 1], on the CPU."""
-    k = len(vectors)
-    wi = view_directions(0.05 + 0.95 * torch.rand(k, 1, generator=gen)).repeat_interleave(n, 0)
-    with torch.no_grad():
-        bsdf = LayeredBsdf(params_from_vectors(vectors.cpu().repeat_interleave(n, 0)), torch.ones(1, 3))
-        wo = bsdf.sample(wi, torch.rand(k * n, 3, generator=gen))
-        pdf = bsdf.pdf(wi, wo)
-    return LobeSamples(bsdf, wi, wo, pdf, (wo[:, 2] > 0) & (pdf > 1e-6))
+def annealed_floor(cfg: TrainConfig, step: int) -> float:
+    """The hybrid lobes' alpha floor at ``step``: geometric from the first to the last value of
+    ``lobe_alpha_floor`` over the first ``anneal`` share of the decoder phase, then held."""
+    start, end = cfg.lobe_alpha_floor
+    t = min(step / max(cfg.anneal * cfg.steps, 1.0), 1.0)
+    return start * (end / start) ** t
 
 
 def _cosine_lr(cfg: TrainConfig, step: int, total: int) -> float:
@@ -188,7 +114,7 @@ class Objective(nn.Module):
     """Phases 1 and 2 as one module call, so DistributedDataParallel can average the
     gradients of encoder and decoder together."""
 
-    def __init__(self, encoder: Encoder, decoder: Decoder, cfg: TrainConfig) -> None:
+    def __init__(self, encoder: Encoder, decoder: AnyDecoder, cfg: TrainConfig) -> None:
         super().__init__()
         self.encoder, self.decoder, self.cfg = encoder, decoder, cfg
 
@@ -216,7 +142,7 @@ class SamplerObjective(nn.Module):
         super().__init__()
         self.sampler = sampler
 
-    def forward(self, decoder: Decoder, z: Tensor, wi: Tensor, u: Tensor) -> Tensor:
+    def forward(self, decoder: AnyDecoder, z: Tensor, wi: Tensor, u: Tensor) -> Tensor:
         return sampler_loss(self.sampler, decoder, z, wi, u)
 
 
@@ -245,10 +171,11 @@ class Trainer:
         if cfg.threads:
             torch.set_num_threads(cfg.threads)
         device = self.where.device
-        self.encoder, self.decoder = Encoder().to(device), Decoder(cfg.width, cfg.depth, cfg.encoding).to(device)
-        self.sampler = SamplingDecoder().to(device)
+        self.encoder, self.decoder = Encoder().to(device), build_decoder(asdict(cfg)).to(device)
+        sampler = build_sampler(self.decoder)
+        # a hybrid samples its own lobes: there is no sampling network to train
+        self.sampler = sampler.to(device) if isinstance(sampler, SamplingDecoder) else None
         self.objective = data_parallel(Objective(self.encoder, self.decoder, cfg), self.where)
-        self.sampler_objective = data_parallel(SamplerObjective(self.sampler), self.where)
         self.step = 0
         self.box: tuple[Tensor, Tensor] | None = None  # training latent box, set when phase 2 starts
         self.gen = torch.Generator().manual_seed(self._data_seed(0))
@@ -261,7 +188,9 @@ class Trainer:
             self.encoder.requires_grad_(False)
         trained = [p for p in (*self.encoder.parameters(), *self.decoder.parameters()) if p.requires_grad]
         self.opt = torch.optim.Adam(trained, lr=cfg.lr)
-        self.sampler_opt = torch.optim.Adam(self.sampler.parameters(), lr=1e-3)
+        if self.sampler is not None:
+            self.sampler_objective = data_parallel(SamplerObjective(self.sampler), self.where)
+            self.sampler_opt = torch.optim.Adam(self.sampler.parameters(), lr=1e-3)
 
     def _data_seed(self, step: int) -> int:
         return (self.cfg.seed + step) * 1024 + self.where.rank
@@ -270,9 +199,15 @@ class Trainer:
         return make_batch(self.pool, self.cfg.batch, self.gen).to(self.where.device)
 
     # ---- checkpoints ---------------------------------------------------------------
+    def _networks(self) -> dict[str, nn.Module]:
+        nets = {"encoder": self.encoder, "decoder": self.decoder}
+        if self.sampler is not None:
+            nets["sampler"] = self.sampler
+        return nets
+
     def weights(self) -> dict[str, Tensor]:
         out = {}
-        for name, net in (("encoder", self.encoder), ("decoder", self.decoder), ("sampler", self.sampler)):
+        for name, net in self._networks().items():
             out.update({f"{name}.{k}": v.detach().contiguous() for k, v in net.state_dict().items()})
         return out
 
@@ -301,8 +236,7 @@ class Trainer:
         return True
 
     def _load(self, path: Path, names: list[str] | None = None) -> None:
-        nets = {"encoder": self.encoder, "decoder": self.decoder, "sampler": self.sampler}
-        load_networks(path, {k: v for k, v in nets.items() if names is None or k in names})
+        load_networks(path, {k: v for k, v in self._networks().items() if names is None or k in names})
 
     # ---- training -------------------------------------------------------------------
     def _decoder_step(self, energy: bool = False) -> float:
@@ -314,6 +248,8 @@ class Trainer:
         batch = self.buffer[torch.randint(len(self.buffer), (1,), generator=self.gen).item()]
         for group in self.opt.param_groups:
             group["lr"] = 5 * cfg.lr_final if energy else _cosine_lr(cfg, self.step, cfg.steps)
+        if isinstance(self.decoder, HybridDecoder):
+            self.decoder.alpha_floor.fill_(annealed_floor(cfg, self.step))
         loss = self.objective(batch, self.gen, self._latent_box() if energy else None)
         self.opt.zero_grad()
         loss.backward()
@@ -322,8 +258,6 @@ class Trainer:
 
     def _latent_box(self) -> tuple[Tensor, Tensor]:
         """The encoded pool's bounding box enlarged by 10 %, fixed when phase 2 starts."""
-        from .validity import enlarged  # validity imports fit, which imports this module
-
         if self.box is None:
             with torch.no_grad():
                 pool_z = self.encoder(self.pool.to(self.where.device))
@@ -346,7 +280,7 @@ class Trainer:
 
         cfg = self.cfg
         phases = [("decoder", cfg.steps, self._decoder_step), ("energy", cfg.energy_steps, lambda: self._decoder_step(energy=True)),
-                   ("sampler", cfg.sampler_steps, self._sampler_step)]
+                  ("sampler", cfg.sampler_steps if self.sampler is not None else 0, self._sampler_step)]
         total = sum(length for _, length, _ in phases)
         losses: list[float] = []
         start = time.perf_counter()

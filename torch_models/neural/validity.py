@@ -20,7 +20,7 @@ import torch
 from torch import Tensor
 
 from .data import parameter_vectors
-from .fit import Furnace, furnace
+from .energy import Furnace, furnace
 from .weights import NeuralModel
 
 

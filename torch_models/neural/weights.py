@@ -9,7 +9,8 @@ from pathlib import Path
 from safetensors.torch import load_file
 from torch import nn
 
-from .networks import Decoder, Encoder, SamplingDecoder
+from .decoders import AnyDecoder, AnySampler, build_decoder, build_sampler
+from .networks import Encoder
 
 SHIPPED = Path(__file__).resolve().parent / "weights"
 
@@ -17,8 +18,8 @@ SHIPPED = Path(__file__).resolve().parent / "weights"
 @dataclass
 class NeuralModel:
     encoder: Encoder
-    decoder: Decoder
-    sampler: SamplingDecoder
+    decoder: AnyDecoder
+    sampler: AnySampler
     digest: str  # sha256 of the weights file: which decoder a fitted material belongs to
     alpha_floor: float = 0.0  # the training's angular floor, which fitting must apply too
     relative_weight: float = 0.0  # the training loss's relative term, which fitting uses too
@@ -48,15 +49,20 @@ def load_networks(path: Path, nets: dict[str, nn.Module]) -> None:
 
 
 def load(folder: Path = SHIPPED) -> NeuralModel:
-    """The networks of a training run folder (weights.safetensors + state.json), frozen."""
+    """The networks of a training run folder (weights.safetensors + state.json), frozen,
+    of the decoder kind its config names (``decoders.KINDS``)."""
     weights, state = folder / "weights.safetensors", folder / "state.json"
     if not weights.is_file() or not state.is_file():
         raise FileNotFoundError(f"{folder}: no trained decoder here (weights.safetensors, state.json); "
                                 "run `python -m torch_models train-decoder` first")
     cfg = json.loads(state.read_text())["config"]
-    nets = {"encoder": Encoder(), "decoder": Decoder(cfg["width"], cfg["depth"], cfg.get("encoding", "half")), "sampler": SamplingDecoder()}
+    decoder = build_decoder(cfg)
+    sampler = build_sampler(decoder)
+    nets = {"encoder": Encoder(), "decoder": decoder}
+    if isinstance(sampler, nn.Module):
+        nets["sampler"] = sampler
     load_networks(weights, nets)
     for net in nets.values():
         net.eval().requires_grad_(False)
-    return NeuralModel(nets["encoder"], nets["decoder"], nets["sampler"], digest(folder),
+    return NeuralModel(nets["encoder"], decoder, sampler, digest(folder),
                        cfg.get("alpha_floor", 0.0), cfg.get("relative_weight", 0.0))

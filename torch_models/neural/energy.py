@@ -1,163 +1,29 @@
-"""Fit an enhanced material's latent textures against the frozen decoder (paper sec. 4.3).
+"""The white furnace and the energy guard of a decoder whose latents may gain energy.
 
-Model no more than the material needs: texels with equal parameter vectors are
-fitted once (exact dedupe), then vectors that agree to within a quantisation
-step in the normalised parameter space are merged (every texel is within half a
-step, ``QUANT / 2`` per normalised coordinate, of its representative). Latents
-start from the encoder and are optimised with the training loss on samples of
-the analytic model; they are scattered back to texels as two RGB EXR textures.
-A constant material stays one vector in ``neural.json``.
-
-Energy: each fitted representative is checked with a white furnace (albedo of
-f_neu plus T times a white Lambertian, by a half-vector quadrature and by Monte
-Carlo); one that exceeds 1 (the Monte Carlo estimate beyond 3 sigma) gets an
-energy scale < 1 for its f_neu, recorded in ``neural.json``.
+Each fitted representative is checked with a white furnace (albedo of f_neu plus
+T times a white Lambertian, by a half-vector quadrature and by Monte Carlo); one
+that exceeds 1 is fitted again under an albedo penalty, and what still exceeds 1
+(the Monte Carlo estimate beyond 3 sigma) gets an energy scale < 1 for its f_neu,
+recorded in ``neural.json``. A decoder that is bounded by construction
+(``decoder.bounded``, the hybrid) skips both: its fits and generated latents pass
+as they are, and ``furnace`` stays a measurement.
 """
 from __future__ import annotations
 
-import json
 import math
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import torch
 from torch import Tensor
 
-from richmat_addon.core.schema import CHANNEL_SLICES, PARAMS
-from .data import Batch, angular_floor, cosine_hemisphere, make_batch, view_directions
-from .networks import normalise_params
-from .train import decoder_loss
+from .data import cosine_hemisphere, make_batch, view_directions
+from .fitting import FIT_BATCH, FIT_BUFFER, deterministic, fitting_loss, fitting_pool
+from .quadrature import VIEW_COSINES, QuadratureSums, half_vector_albedo, half_vector_nodes, summed_albedo
 from .weights import NeuralModel
 
-QUANT = 1.0 / 256.0
-FIT_BATCH = 16384  # (texel, wi, wo) samples per Adam step, shared by all vectors fitted together
-FIT_BUFFER = 24  # batches of analytic targets drawn per fit, then reused
-
-
-@dataclass
-class MaterialVectors:
-    """Per-texel parameter vectors of a material folder, deduplicated."""
-
-    shape: tuple[int, int] | None  # texture size, or None for a constant material
-    unique: np.ndarray  # (K, 22) representatives
-    inverse: np.ndarray  # (H*W,) representative of every texel (empty when constant)
-    exact_unique: int  # distinct vectors before merging
-
-    def texels(self, per_vector: Tensor) -> np.ndarray:
-        """Per-representative values (K, C) scattered to the texture, (H, W, C)."""
-        assert self.shape is not None, "a constant material has no texels"
-        values = per_vector.reshape(len(per_vector), -1)[torch.from_numpy(self.inverse)]
-        return np.ascontiguousarray(values.reshape(*self.shape, -1).numpy())
-
-
-def read_exr(path: Path) -> np.ndarray:
-    import OpenImageIO as oiio
-
-    buf = oiio.ImageBuf(str(path))
-    if buf.has_error:
-        raise ValueError(f"{path}: cannot read ({buf.geterror().strip()})")
-    return np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)
-
-
-def read_vectors(folder: Path) -> MaterialVectors:
-    """Parameter vectors of a folder written by ``enhance`` (params.json + EXRs)."""
-    record_path = folder / "params.json"
-    if not record_path.is_file():
-        raise ValueError(f"{folder}: not an enhanced material folder (no params.json)")
-    record = json.loads(record_path.read_text())
-    maps = {name: read_exr(folder / file) for name, file in record.get("textures", {}).items()
-            if name in CHANNEL_SLICES}
-    shape = max((m.shape[:2] for m in maps.values()), default=None, key=lambda s: s[0] * s[1])
-    columns = []
-    for p in PARAMS:
-        if p.name in maps:
-            m = maps[p.name]
-            if m.shape[:2] != shape:  # nearest resampling to the largest map
-                rows = (np.arange(shape[0]) * m.shape[0] // shape[0])[:, None]
-                cols = (np.arange(shape[1]) * m.shape[1] // shape[1])[None, :]
-                m = m[rows, cols]
-            columns.append(m.reshape(-1, p.channels))
-        else:
-            value = np.atleast_1d(np.asarray(record["constants"][p.name], np.float32))
-            columns.append(np.broadcast_to(value, ((shape[0] * shape[1]) if shape else 1, p.channels)))
-    vectors = np.nan_to_num(np.concatenate(columns, 1).astype(np.float32))
-    exact, inverse = np.unique(vectors, axis=0, return_inverse=True)
-    keys = np.round(normalise_params(torch.from_numpy(exact)).numpy() / QUANT).astype(np.int64)
-    merged_keys, merged_of_exact = np.unique(keys, axis=0, return_inverse=True)
-    representatives = np.zeros((len(merged_keys), vectors.shape[1]), np.float32)
-    np.add.at(representatives, merged_of_exact.ravel(), exact)
-    representatives /= np.bincount(merged_of_exact.ravel())[:, None]
-    texel_rep = merged_of_exact.ravel()[inverse.ravel()] if shape else np.zeros(0, np.int64)
-    return MaterialVectors(shape, representatives, texel_rep, len(exact))
-
-
-def fitting_pool(model: NeuralModel, vectors: np.ndarray) -> Tensor:
-    """(K, 22) vectors as ``model`` was trained to draw them (its angular floor applied)."""
-    return angular_floor(vectors, model.alpha_floor)
-
-
-def fitting_loss(model: NeuralModel, z: Tensor, batch: Batch) -> Tensor:
-    """The loss ``model`` was trained with (its relative term included), which fitting minimises."""
-    return decoder_loss(model.decoder, z, batch, relative_weight=model.relative_weight)
-
-
-def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int = FIT_BATCH, seed: int = 0,
-                start: Tensor | None = None, progress=None,  # type: ignore[no-untyped-def]
-                penalty: Callable[[int, Tensor], Tensor] | None = None) -> Tensor:
-    """Latents (K, 6) of K parameter vectors, from the encoder (or ``start``), optimised ``steps`` times.
-
-    Analytic targets cost far more than a decoder step, so ``FIT_BUFFER`` batches
-    are drawn once and cycled through (fewer when there are fewer steps).
-    ``penalty(step, z)`` is added to the loss: a way to try other objectives
-    (bench/fit_limits.py) without a second optimisation loop.
-    """
-    pool = fitting_pool(model, vectors)
-    with torch.no_grad():
-        z0 = model.encoder(pool) if start is None else start
-    z = z0.clone().requires_grad_(True)
-    opt = torch.optim.Adam([z], lr=1e-2)
-    gen = torch.Generator().manual_seed(seed)
-    buffer = [make_batch(pool, batch, gen) for _ in range(min(steps, FIT_BUFFER))]
-    with deterministic():
-        for step in range(steps):
-            b = buffer[step % len(buffer)]
-            loss = fitting_loss(model, z[b.index], b)
-            if penalty is not None:
-                loss = loss + penalty(step, z)
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            if progress is not None:
-                progress(step, loss.item(), z.detach())
-    return z.detach()
-
-
-@contextmanager
-def deterministic() -> Iterator[None]:
-    """Torch's deterministic kernels while fitting.
-
-    The gradient of ``z[index]`` scatters into the latent rows; with more than one
-    thread the default CPU kernel sums in a varying order, so two runs (a farm job
-    and its restart) would write latents a half-float step apart.
-    """
-    before = torch.are_deterministic_algorithms_enabled()
-    torch.use_deterministic_algorithms(True)
-    try:
-        yield
-    finally:
-        torch.use_deterministic_algorithms(before)
-
-
-VIEW_COSINES = (1.0, 0.7, 0.4, 0.15, 0.05)
 SCALE_STEP = 1.0 / 1024  # grid of the energy scale (a power of two: exact in float32)
 
-
-QUADRATURE_THETA = 64  # half-vector polar rings
-QUADRATURE_PHI = 32  # azimuths per ring: a lobe around the mirror direction sits at h = n for every wi,
-# where rings are tiny, so polar resolution buys accuracy and azimuths mostly cost (10 k evaluations per latent)
 # The quadrature integrates a Lambertian to within 0.06 % at every view angle: a latent with
 # T = 1 and no f_neu is a white diffuse surface, not an energy gain.
 QUADRATURE_TOLERANCE = 2e-3
@@ -233,6 +99,8 @@ def guard(model: NeuralModel, z: Tensor, seed: int = 0, rounds: int = 4) -> Tens
     held to 1 + ``GUARD_TOLERANCE``, not the looser bound a fit's check allows.
     """
     scale = torch.ones(len(z))
+    if model.decoder.bounded:
+        return scale
     todo = torch.arange(len(z))
     sums = half_vector_albedo(model, z)  # deterministic: a scaled latent's quadrature follows from it
     for r in range(rounds):
@@ -280,6 +148,8 @@ def fit_bounded(model: NeuralModel, vectors: np.ndarray, z: Tensor, seed: int = 
     moves it to the side the furnace accepts, at the least cost in the loss. What
     still gains energy is then scaled by ``Furnace.energy_scale``.
     """
+    if model.decoder.bounded:
+        return BoundedFit(z, bound_furnace(model, z), torch.zeros(len(z), dtype=torch.bool))
     check = furnace(model, z, seed=seed)
     refitted = check.failing.clone()
     failing = refitted.nonzero(as_tuple=True)[0]
@@ -305,13 +175,27 @@ def _refit(model: NeuralModel, vectors: np.ndarray, z0: Tensor, steps: int, seed
         for step in range(steps):
             b = buffer[step % len(buffer)]
             pick = torch.randperm(len(z), generator=gen)[:REFIT_LATENTS]
-            excess = sum(torch.relu(_summed_albedo(model, z[pick], wi, wo, w).albedo() - REFIT_TARGET)
+            excess = sum(torch.relu(summed_albedo(model, z[pick], wi, wo, w).albedo() - REFIT_TARGET)
                          for wi, wo, w in nodes)
             loss = fitting_loss(model, z[b.index], b) + excess.mean()
             opt.zero_grad()
             loss.backward()
             opt.step()
     return z.detach()
+
+
+def bound_furnace(model: NeuralModel, z: Tensor) -> Furnace:
+    """The furnace of a decoder bounded by construction, read off its lobe weights: at each of
+    ``VIEW_COSINES`` the albedo is at most the weight of every slot but the absorbed one, and
+    T is the transmitted slot's. Exact bounds, no samples (standard errors 0)."""
+    rows, ts = [], []
+    with torch.no_grad():
+        for mu in VIEW_COSINES:
+            wi = view_directions(torch.full((len(z), 1), mu))
+            rows.append(model.decoder.albedo_bound(z, wi))
+            ts.append(model.decoder(z, wi, wi)[1][:, 0])
+    bound = torch.stack(rows, 1)
+    return Furnace(bound, torch.zeros_like(bound), torch.stack(ts, 1), bound.clone())
 
 
 def furnace(model: NeuralModel, z: Tensor, n: int = 1024, seed: int = 0,
@@ -349,84 +233,6 @@ def furnace(model: NeuralModel, z: Tensor, n: int = 1024, seed: int = 0,
 def _significant_gain(albedos: Tensor, std_errors: Tensor) -> Tensor:
     """Monte Carlo albedos above 1 by more than 3 standard errors."""
     return albedos > 1.0 + 3.0 * std_errors
-
-
-def half_vector_grid(n_theta: int = QUADRATURE_THETA, n_phi: int = QUADRATURE_PHI) -> tuple[Tensor, Tensor]:
-    """Midpoint quadrature nodes h (M, 3) on the upper hemisphere and their solid angles (M,).
-
-    Polar angle theta_h = (pi / 2) t^3 for uniform t: rings crowd around the normal,
-    where a narrow lobe's half vectors are (the innermost rings resolve alpha ~ 1e-3)."""
-    t = (torch.arange(n_theta, dtype=torch.float64) + 0.5) / n_theta
-    theta = 0.5 * math.pi * t ** 3
-    d_theta = 1.5 * math.pi * t ** 2 / n_theta
-    phi = (torch.arange(n_phi, dtype=torch.float64) + 0.5) * 2 * math.pi / n_phi
-    th, ph = torch.meshgrid(theta, phi, indexing="ij")
-    h = torch.stack([th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()], -1).reshape(-1, 3)
-    d_omega = (th.sin() * d_theta[:, None] * (2 * math.pi / n_phi)).reshape(-1)
-    return h.float(), d_omega.float()
-
-
-def half_vector_nodes(mu: float, n_theta: int = QUADRATURE_THETA,
-                      n_phi: int = QUADRATURE_PHI) -> tuple[Tensor, Tensor, Tensor]:
-    """wi (3,) at view cosine ``mu``, outgoing directions wo (M, 3) and weights (M,) such that
-    sum(weights * g(wi, wo)) integrates g over the outgoing hemisphere.
-
-    wo = reflect(wi, h) maps the half-vector hemisphere onto all outgoing directions
-    with d omega_o = 4 (wi . h) d omega_h; those below the horizon get weight 0."""
-    h, d_omega = half_vector_grid(n_theta, n_phi)
-    wi = view_directions(torch.tensor([[mu]]))[0]
-    cos_h = h @ wi
-    wo = 2 * cos_h[:, None] * h - wi
-    weight = torch.where((cos_h > 0) & (wo[:, 2] > 0), 4 * cos_h * d_omega, torch.zeros_like(cos_h))
-    return wi, wo, weight
-
-
-@dataclass
-class QuadratureSums:
-    """The half-vector quadrature of K latents (at ``VIEW_COSINES``, or one view): f_neu's albedo
-    per colour channel, unscaled, (K, [A,] 3), and the diffuse base's T / pi, (K, [A])."""
-
-    reflected: Tensor
-    diffuse: Tensor
-
-    def albedo(self, scale: Tensor | None = None) -> Tensor:
-        """The brightest channel's albedo of s f_neu + T / pi (s = 1 when None): linear in s,
-        so a repaired latent needs no second quadrature."""
-        reflected = self.reflected
-        if scale is not None:
-            reflected = reflected * scale.reshape((-1,) + (1,) * (reflected.dim() - 1))
-        return (reflected + self.diffuse[..., None]).amax(-1)
-
-    def __getitem__(self, index: Tensor) -> QuadratureSums:
-        return QuadratureSums(self.reflected[index], self.diffuse[index])
-
-
-def half_vector_albedo(model: NeuralModel, z: Tensor, n_theta: int = QUADRATURE_THETA,
-                       chunk: int = 1 << 18) -> QuadratureSums:
-    """By quadrature at ``VIEW_COSINES``: f_neu's albedo per channel and the diffuse base's.
-
-    T comes out of the same network as f, so it varies a little with wo, as the
-    renderer evaluates it: the diffuse base is integrated too, not taken at one wo."""
-    reflected, diffuse = torch.zeros(len(z), len(VIEW_COSINES), 3), torch.zeros(len(z), len(VIEW_COSINES))
-    with torch.no_grad():
-        for a, mu in enumerate(VIEW_COSINES):
-            wi, wo, weight = half_vector_nodes(mu, n_theta)
-            per_chunk = max(1, chunk // len(wo))
-            for k0 in range(0, len(z), per_chunk):
-                k = slice(k0, k0 + per_chunk)
-                sums = _summed_albedo(model, z[k], wi, wo, weight)
-                reflected[k, a], diffuse[k, a] = sums.reflected, sums.diffuse
-    return QuadratureSums(reflected, diffuse)
-
-
-def _summed_albedo(model: NeuralModel, z: Tensor, wi: Tensor, wo: Tensor, weight: Tensor) -> QuadratureSums:
-    """At one wi, the weighted sums over the outgoing nodes wo (M, 3): f_neu's albedo (K, 3)
-    and the diffuse base's (K,)."""
-    k, m = len(z), len(wo)
-    f, t, _ = model.decoder(z.repeat_interleave(m, 0), wi.expand(k * m, 3), wo.repeat(k, 1))
-    reflected = (f.reshape(k, m, 3) * weight[None, :, None]).sum(1)
-    diffuse = (t.reshape(k, m) * wo[:, 2] * weight).sum(1) / math.pi
-    return QuadratureSums(reflected, diffuse)
 
 
 def _furnace_pass(model: NeuralModel, z: Tensor, n: int, seed: int, scale: Tensor,

@@ -1,0 +1,131 @@
+"""The hybrid decoder: energy bounded by construction, exact lobe sampling, chosen by its weights folder."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+import torch
+
+from torch_models.brdf.ggx import ggx_single_scatter
+from torch_models.cli import main
+from torch_models.neural import decoders, energy, quadrature, weights
+from torch_models.neural.data import cosine_hemisphere, view_directions
+from torch_models.neural.hybrid import HybridDecoder, LobeSampler
+from torch_models.neural.networks import Decoder, direction_features
+from tests.chi2 import chi2_test, sidak_threshold
+from tests.test_neural_training import TINY
+
+
+def scrambled(seed: int, scale: float) -> HybridDecoder:
+    """A hybrid decoder with random weights ``scale`` times larger than the default init: extreme
+    lobes (mirror-sharp and fully rough, F0 near 0 or 1, gates shut or open) a trained one may reach."""
+    torch.manual_seed(seed)
+    dec = HybridDecoder()
+    with torch.no_grad():
+        for p in dec.parameters():
+            p.mul_(scale)
+    return dec.eval().requires_grad_(False)
+
+
+class Model:
+    """The parts of a ``NeuralModel`` the quadrature reads."""
+
+    def __init__(self, decoder: HybridDecoder) -> None:
+        self.decoder = decoder
+
+
+@pytest.mark.parametrize("seed,scale", [(0, 1.0), (1, 4.0), (2, 12.0)])
+def test_albedo_plus_transmission_never_exceeds_one(seed: int, scale: float) -> None:
+    """For random weights and random latents (inside the box and far outside it), the
+    quadrature albedo of f_neu plus T stays at or below the decoder's own bound, itself <= 1."""
+    dec = scrambled(seed, scale)
+    z = (torch.rand(96, 6, generator=torch.Generator().manual_seed(seed)) * 2 - 1) * torch.tensor([1.1] * 3 + [3.0] * 3)
+    sums = quadrature.half_vector_albedo(Model(dec), z)
+    albedo = sums.reflected + sums.diffuse[..., None]  # (K, A, 3)
+    bounds = torch.stack([dec.albedo_bound(z, view_directions(torch.full((len(z), 1), mu)))
+                          for mu in quadrature.VIEW_COSINES], 1)
+    assert (bounds <= 1 + 1e-6).all()  # < 1 in exact arithmetic; a float32 softmax sums to 1 +- rounding
+    # the quadrature resolves alpha ~ 1e-3 lobes to a few 1e-4 (quadrature.QUADRATURE_TOLERANCE is 2e-3)
+    assert (albedo.amax(-1) <= bounds + 2e-3).all()
+    assert albedo.amax() > 0.3  # the test sees real lobes, not a black decoder
+
+
+def test_vectorised_lobes_match_cycles_ggx_per_lobe() -> None:
+    """``lobe_sum`` evaluates all lobes at once; each must be ``ggx.ggx_single_scatter`` with Schlick F."""
+    dec = scrambled(3, 2.0)
+    n = 4096
+    gen = torch.Generator().manual_seed(0)
+    z, wi, wo = torch.rand(n, 6, generator=gen) * 2 - 1, cosine_hemisphere(n, gen), cosine_hemisphere(n, gen)
+    f, t, r = dec(z, wi, wo)
+    lobes = dec.head_at(z, wi)
+    gates = torch.sigmoid(dec.gates(torch.cat([z, direction_features(wi, wo)], -1))).reshape(n, 4, 3)
+    expected = lobes.weights[:, 3:4] * gates[:, 3] * lobes.diffuse * wo[:, 2:3] / math.pi
+    for k in range(3):
+        single, h = ggx_single_scatter(wi, wo, lobes.alpha[:, k:k + 1])
+        f0 = lobes.f0[:, k]
+        expected = expected + lobes.weights[:, k:k + 1] * gates[:, k] * (f0 + (1 - f0) * (1 - (wi * h).sum(-1, keepdim=True)) ** 5) * single
+    assert torch.allclose(f, expected, rtol=1e-4, atol=1e-6)
+    assert torch.equal(t[:, 0], lobes.weights[:, 4]) and ((r >= 0) & (r <= 1)).all()
+
+
+@pytest.mark.parametrize("cos_i", [0.95, 0.5, 0.12])
+def test_lobe_sampler_matches_its_pdf(cos_i: float) -> None:
+    """Chi-square (Mitsuba-3 style) of the hybrid's exact lobe sampler at three view angles: a
+    mixture of three GGX lobes of different widths and the diffuse lobe. The floor keeps every
+    lobe wider than the test's cells (32 x 64 over the sphere) can integrate."""
+    dec = scrambled(4, 3.0)
+    dec.alpha_floor.fill_(0.1)
+    sampler = LobeSampler(dec)
+    z = torch.rand(1, 6, generator=torch.Generator().manual_seed(int(cos_i * 100))) * 2 - 1
+    wi = view_directions(torch.tensor([[cos_i]]))
+    alphas = dec.head_at(z, wi).alpha
+    assert alphas.min() < 0.3  # a peaked lobe is part of what is tested
+    gen = torch.Generator().manual_seed(7)
+
+    def sample(n: int) -> torch.Tensor:
+        wo = sampler.sample(z.expand(n, -1), wi.expand(n, -1), torch.rand(n, 3, generator=gen))
+        return torch.where((wo[:, 2:3] > 0), wo, torch.full_like(wo, float("nan")))
+
+    def pdf(wo: torch.Tensor) -> torch.Tensor:
+        return sampler.pdf(z.expand(len(wo), -1), wi.expand(len(wo), -1), wo)
+
+    result = chi2_test(sample, pdf, n_samples=200_000)
+    assert result.passed(sidak_threshold(3)), result
+
+
+@pytest.fixture(scope="module")
+def tiny_hybrid(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("tiny_hybrid")
+    cfg = folder / "tiny.json"
+    cfg.write_text(json.dumps(dict(TINY, kind="hybrid", steps=40, checkpoint_every=20, lobe_alpha_floor=[0.05, 0.002])))
+    assert main(["train-decoder", "--config", str(cfg), "--out", str(folder / "run")]) == 0
+    return folder / "run"
+
+
+def test_the_weights_folder_names_its_kind(tiny_hybrid: Path, tmp_path: Path) -> None:
+    model = weights.load(tiny_hybrid)
+    assert isinstance(model.decoder, HybridDecoder) and isinstance(model.sampler, LobeSampler)
+    assert float(model.decoder.alpha_floor) == pytest.approx(0.002)  # the annealed floor's last value is kept
+    assert isinstance(weights.load().decoder, (Decoder, HybridDecoder))
+    state = json.loads((tiny_hybrid / "state.json").read_text())
+    assert state["config"]["kind"] == "hybrid" and state["step"] == 40  # no sampler phase to train
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "weights.safetensors").write_bytes((tiny_hybrid / "weights.safetensors").read_bytes())
+    (bad / "state.json").write_text(json.dumps({"step": 1, "config": dict(state["config"], kind="transformer")}))
+    with pytest.raises(ValueError, match="unknown decoder kind 'transformer'"):
+        weights.load(bad)
+    assert decoders.KINDS == ("mlp", "hybrid")
+
+
+def test_a_bounded_decoder_skips_the_furnace_repair(tiny_hybrid: Path) -> None:
+    """Fits and generated latents of the hybrid pass as they are: no refit, no energy scale."""
+    model = weights.load(tiny_hybrid)
+    z = torch.rand(64, 6, generator=torch.Generator().manual_seed(0)) * 2.2 - 1.1
+    assert (energy.guard(model, z) == 1).all()
+    fitted = energy.fit_bounded(model, torch.zeros(64, 22).numpy(), z)
+    assert fitted.counts() == {"checked": 64, "passed_as_fitted": 64, "passed_after_refit": 0, "repaired_by_scaling": 0}
+    measured = energy.furnace(model, z)  # the real furnace agrees with the bound
+    assert not measured.failing.any() and (measured.albedo <= fitted.check.albedo + 2e-3).all()

@@ -1,0 +1,168 @@
+"""The hybrid decoder: analytic GGX lobes from the latent, a small network that gates them.
+
+The direct MLP (``networks.Decoder``) must draw every lobe, peaks included, from
+(latent, directions); shared across materials it draws near-mirror metals and half
+metals badly and half its latents gain energy. Here the peaks are closed-form:
+
+* **head** (latent and the view cosine, once per shading point and view): K isotropic
+  GGX lobes, each with its alpha and an RGB Schlick F0, a diffuse lobe with an RGB
+  colour, softmax weights over K + 3 slots (the K GGX lobes, the diffuse lobe, the
+  transmittance T to the diffuse base and an absorbed slot: a weight that follows the
+  view angle is how a coat's Fresnel moves energy between its peak and the base) and
+  R(wi) for the renderer's sampling split;
+* **gates** (latent and both directions): per-lobe RGB factors in [0, 1] that shape
+  each lobe (layering, haze, coat tint, dust, Fresnel beyond Schlick).
+
+    f_neu cos = sum_k w_k(wi) g_k(wi, wo) F_k(wi.h) D_k G2_k / (4 cos_i)
+                + w_d(wi) g_d(wi, wo) c_d cos_o / pi,          T(wi) = w_T(wi)
+
+Single-scatter Smith GGX with F <= 1 has albedo <= 1, so does the Lambertian with
+c_d <= 1, and gates only remove energy: albedo(f_neu) + T <= 1 - w_absorbed < 1 for
+every latent and view direction, with no furnace to repair anything. A half metal is
+a metal lobe and a dielectric lobe in proportion, linear in the weights.
+
+The lobes' alphas are sqrt(a^2 + floor^2): training anneals ``alpha_floor`` down
+(gradients through a 1e-3 peak are spiky while the lobes are still far off) and the
+weights file keeps the final floor.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+from torch import Tensor, nn
+
+from ..brdf.frame import cos_theta, safe_normalize, sin2_theta
+from ..brdf.ggx import ggx_pdf, ggx_sample
+from ..brdf.model import luminance
+from .networks import LATENT, direction_features, mlp
+
+LOG_ALPHA_MIN = math.log(1e-4)  # the lobe head's alphas span (1e-4, 1) before the floor
+INITIAL_ALPHAS = (0.02, 0.12, 0.45)  # lobe k starts near the k-th: a mirror-like, a glossy and a rough lobe
+
+
+def view_features(cos_i: Tensor) -> Tensor:
+    """(N, 3) features of the view cosine: cos, sin and the Schlick term (1 - cos)^5."""
+    c = cos_i.clamp(0.0, 1.0)
+    return torch.cat([c, (1.0 - c * c).sqrt(), (1.0 - c) ** 5], -1)
+
+
+@dataclass
+class Lobes:
+    """What the head predicts at N (latent, view) points: GGX alphas (N, K), Schlick F0s
+    (N, K, 3), the diffuse lobe's colour (N, 3), slot weights (N, K + 3: the GGX lobes,
+    diffuse, T, absorbed; they sum to 1) and R (N, 1)."""
+
+    alpha: Tensor
+    f0: Tensor
+    diffuse: Tensor
+    weights: Tensor
+    r: Tensor
+
+    def repeat(self, m: int) -> "Lobes":
+        """Each point's lobes for m directions in a row (a shading point's many wo)."""
+        return Lobes(*(getattr(self, k).repeat_interleave(m, 0) for k in self.__dataclass_fields__))
+
+
+class HybridDecoder(nn.Module):
+    """f_neu * cos (N, 3), T (N, 1), R (N, 1) from latents (N, 6) and directions (N, 3),
+    energy-bounded by construction."""
+
+    kind = "hybrid"
+    bounded = True  # albedo(f_neu) + T <= 1 for every latent: fitting needs no furnace
+
+    def __init__(self, lobes: int = 3, width: int = 32, gate_width: int = 32, gate_depth: int = 2,
+                 alpha_floor: float = 1e-3) -> None:
+        super().__init__()
+        self.lobes, self.width, self.gate_width, self.gate_depth = lobes, width, gate_width, gate_depth
+        # per lobe an alpha logit and F0 rgb; diffuse rgb; slot logits (K + 3); R
+        self.head = mlp(LATENT + 3, width, 2, 5 * lobes + 7)
+        self.gates = mlp(LATENT + 10, gate_width, gate_depth, 3 * (lobes + 1))
+        self.register_buffer("alpha_floor", torch.tensor(float(alpha_floor)))
+        with torch.no_grad():  # spread the lobes over the roughness range from the start
+            bias = self.head[-1].bias
+            for k in range(lobes):
+                s = math.log(INITIAL_ALPHAS[k % len(INITIAL_ALPHAS)]) / LOG_ALPHA_MIN
+                bias[k] = math.log((1.0 - s) / s)
+            self.gates[-1].bias.fill_(2.0)  # gates start open (sigmoid(2) = 0.88)
+
+    def head_at(self, latent: Tensor, wi: Tensor) -> Lobes:
+        """The lobes at (latent, wi): once per shading point and view direction."""
+        k = self.lobes
+        o = self.head(torch.cat([latent, view_features(cos_theta(wi))], -1))
+        alpha = torch.exp(LOG_ALPHA_MIN * (1.0 - torch.sigmoid(o[:, :k])))
+        alpha = (alpha.square() + self.alpha_floor.square()).sqrt()
+        return Lobes(alpha, torch.sigmoid(o[:, k:4 * k]).reshape(-1, k, 3), torch.sigmoid(o[:, 4 * k:4 * k + 3]),
+                     torch.softmax(o[:, 4 * k + 3:-1], -1), torch.sigmoid(o[:, -1:]))
+
+    def forward(self, latent: Tensor, wi: Tensor, wo: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        lobes = self.head_at(latent, wi)
+        return self.lobe_sum(lobes, latent, wi, wo), lobes.weights[:, self.lobes + 1:self.lobes + 2], lobes.r
+
+    def lobe_sum(self, lobes: Lobes, latent: Tensor, wi: Tensor, wo: Tensor) -> Tensor:
+        """f_neu cos (N, 3) of the predicted lobes, gated: all K GGX lobes at once, sharing the
+        half vector and the Schlick term (the same D, G2 as ``ggx.ggx_single_scatter``)."""
+        k = self.lobes
+        gates = torch.sigmoid(self.gates(torch.cat([latent, direction_features(wi, wo)], -1))).reshape(-1, k + 1, 3)
+        h = safe_normalize(wi + wo)
+        a2 = lobes.alpha.square()  # (N, K)
+        cos_i, cos_o = cos_theta(wi).clamp(min=1e-12), cos_theta(wo).clamp(min=1e-12)
+        d = a2 / (math.pi * (sin2_theta(h) + a2 * cos_theta(h).square()).square())
+        lambda_i = 0.5 * ((1.0 + a2 * sin2_theta(wi) / cos_i.square()).sqrt() - 1.0)
+        lambda_o = 0.5 * ((1.0 + a2 * sin2_theta(wo) / cos_o.square()).sqrt() - 1.0)
+        single = d / ((1.0 + lambda_i + lambda_o) * 4.0 * cos_i) * lobes.weights[:, :k]  # (N, K)
+        schlick = (1.0 - (wi * h).sum(-1, keepdim=True).clamp(0.0, 1.0)) ** 5  # (N, 1)
+        fresnel = lobes.f0 + (1.0 - lobes.f0) * schlick[:, :, None]  # (N, K, 3)
+        glossy = (single[:, :, None] * fresnel * gates[:, :k]).sum(1)
+        diffuse = (lobes.weights[:, k:k + 1] / math.pi) * cos_o * lobes.diffuse * gates[:, k]
+        above = (cos_theta(wi) > 0) & (cos_theta(wo) > 0)
+        return torch.where(above, glossy + diffuse, torch.zeros_like(glossy))
+
+    def log_forward(self, latent: Tensor, wi: Tensor, wo: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        """(log(1 + f * cos), T, R): the quantity the training loss compares."""
+        f, t, r = self(latent, wi, wo)
+        return torch.log1p(f), t, r
+
+    def albedo_bound(self, latent: Tensor, wi: Tensor) -> Tensor:
+        """(N,) an upper bound of albedo(f_neu) + T at wi: the weight of every slot but the absorbed one."""
+        return self.head_at(latent, wi).weights[:, :-1].sum(-1)
+
+
+class LobeSampler:
+    """Exact importance sampling of a hybrid decoder's own lobes (gates left out): the
+    component is chosen by weight times an albedo estimate, a GGX lobe by its visible
+    normals, the diffuse lobe by cosine. Same interface as ``networks.SamplingDecoder``."""
+
+    def __init__(self, decoder: HybridDecoder) -> None:
+        self.decoder = decoder
+
+    def components(self, latent: Tensor, wi: Tensor) -> tuple[Tensor, Tensor]:
+        """Probabilities (N, K + 1) of the GGX lobes and the diffuse lobe, and the alphas (N, K)."""
+        k = self.decoder.lobes
+        lobes = self.decoder.head_at(latent, wi)
+        schlick = (1.0 - cos_theta(wi).clamp(0.0, 1.0)) ** 5
+        f0 = luminance(lobes.f0)[..., 0]
+        glossy = lobes.weights[:, :k] * (f0 + (1.0 - f0) * schlick)
+        diffuse = lobes.weights[:, k:k + 1] * luminance(lobes.diffuse)
+        p = torch.cat([glossy, diffuse], -1) + 1e-6
+        return p / p.sum(-1, keepdim=True), lobes.alpha
+
+    def pdf(self, latent: Tensor, wi: Tensor, wo: Tensor) -> Tensor:
+        p, alpha = self.components(latent, wi)
+        k = alpha.shape[1]
+        out = p[:, k] * wo[:, 2].clamp(min=0.0) / math.pi
+        for j in range(k):
+            out = out + p[:, j] * ggx_pdf(wi, wo, alpha[:, j:j + 1])[:, 0]
+        return out * (wo[:, 2] > 0)
+
+    def sample(self, latent: Tensor, wi: Tensor, u: Tensor) -> Tensor:
+        """u (N, 3): u[:, 0] picks the component, u[:, 1:] samples it."""
+        p, alpha = self.components(latent, wi)
+        k = alpha.shape[1]
+        choice = (u[:, :1] >= p.cumsum(-1)).sum(-1).clamp(max=k)
+        r, phi = u[:, 1:2].sqrt(), 2.0 * math.pi * u[:, 2:3]
+        out = torch.cat([r * phi.cos(), r * phi.sin(), (1.0 - u[:, 1:2]).clamp(min=0.0).sqrt()], -1)
+        for j in range(k):
+            out = torch.where((choice == j)[:, None], ggx_sample(wi, alpha[:, j:j + 1], u[:, 1:3]), out)
+        return out
