@@ -30,17 +30,17 @@ import bpy  # noqa: E402
 from batch.bl_scene import BadAsset  # noqa: E402
 
 BAD_INPUT_EXIT = 3  # batch.pipeline.BAD_INPUT_EXIT (not imported: the orchestrator side stays bpy-free)
-DUST_TYPES = (1, 3)
 UNTEXTURED_DUST_SIZE = 256  # texture size for dust masks of a material without textures
 
 
 def prepare(args: argparse.Namespace) -> None:
     from richmat_addon.blender import mesh_maps
     from richmat_addon.core.enhance import enhance, is_metallic
+    from richmat_addon.core.enhancement_plan import material_type
+    from richmat_addon.core.enhancement_types import DUST_TYPES
     from torch_models.cli_enhance import safe_name, write_material
 
     from batch import bl_materials, bl_scene
-    from batch.enhancement_plan import material_type
 
     bl_scene.empty_scene()
     loaded = bl_scene.import_asset(args.asset)

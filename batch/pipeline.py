@@ -20,9 +20,11 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
 
-from . import captions, publish, runner
+from richmat_addon.core import captions
+from richmat_addon.core.enhancement_plan import asset_type
+
+from . import publish, runner
 from .assets import Asset
-from .enhancement_plan import asset_type
 from .options import REPO, Settings, cpu_threads, file_sha256
 
 BAD_INPUT_EXIT = 3

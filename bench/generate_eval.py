@@ -46,6 +46,7 @@ from richmat_addon.core.maps import EnhancedMaterial, ParamMap  # noqa: E402
 from torch_models.generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural, text  # noqa: E402
 from torch_models.generator import generate as gen  # noqa: E402
 from torch_models.generator.dit import LatentGenerator  # noqa: E402
+from torch_models.generator.encoding import latent_texture  # noqa: E402
 from torch_models.generator.mesh_input import MeshInput  # noqa: E402
 from torch_models.generator.train import CorpusConfig, GeneratorTrainConfig, load_corpus  # noqa: E402
 from torch_models.neural import energy, weights  # noqa: E402
@@ -108,7 +109,7 @@ def psnr(reference: np.ndarray, test: np.ndarray, mask: np.ndarray) -> float:
 
 
 def latents_of(material: EnhancedMaterial, size: int) -> np.ndarray:
-    return corpus.latent_texture(material, (size, size))
+    return latent_texture(material, (size, size))
 
 
 def render(inp: MeshInput, latents: np.ndarray, views: int, resolution: int, spp: int,

@@ -77,7 +77,7 @@ def _run(cmd: list[str], log: Path) -> float:
 def prepare(asset: Path, work: Path, args: argparse.Namespace) -> Path:
     """Prepare and fit one asset once (not timed): the input of every render below."""
     from batch.assets import asset_id
-    from batch.enhancement_plan import asset_type
+    from richmat_addon.core.enhancement_plan import asset_type
     from batch.pipeline import default_commands
 
     commands = default_commands(None, None)

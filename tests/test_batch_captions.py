@@ -5,9 +5,9 @@ from collections import Counter
 from pathlib import Path
 
 from batch.assets import collect
-from batch.captions import caption, colour_name, enhancement_keywords, readable
-from batch.enhancement_plan import asset_type, material_type
+from richmat_addon.core.captions import caption, colour_name, enhancement_keywords, readable
 from richmat_addon.core.enhance import TYPE_MIX
+from richmat_addon.core.enhancement_plan import asset_type, material_type
 
 
 def test_asset_types_follow_the_papers_mix_and_depend_on_the_seed() -> None:

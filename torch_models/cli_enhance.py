@@ -24,6 +24,7 @@ from tqdm import tqdm
 
 from richmat_addon.core import schema
 from richmat_addon.core.enhance import enhance, resolve_type
+from richmat_addon.core.enhancement_types import DIELECTRIC_ONLY, DUST_TYPES, TYPES, index_ranges
 from richmat_addon.core.gltf_materials import GltfMaterial, load_gltf, read_materials
 from richmat_addon.core.gltf_mesh import MeshGeometry, read_geometry
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
@@ -34,8 +35,7 @@ from .cli import InputError, atomic_path
 
 HELP = "enhance the materials of a .glb/.gltf asset (textures, params.json, MaterialX)"
 
-TYPES = ("0", "1", "2", "3", "4", "5", "auto")
-DUST_TYPES = frozenset({1, 3})  # the types whose dust follows world normals
+TYPE_CHOICES = tuple(str(t.index) for t in TYPES) + ("auto",)
 # World-space data of a material whose PBR maps are all constants (but which has UVs):
 # this size then sets the dust texture's resolution.
 UNTEXTURED_RASTER_SIZE = (512, 512)
@@ -44,14 +44,15 @@ PARAMS_FORMAT = 1
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("asset", type=Path, help="a .glb or .gltf file")
-    parser.add_argument("--type", choices=TYPES, default="auto",
-                        help="enhancement type 0-5, or auto (sampled from the dataset mix)")
+    parser.add_argument("--type", choices=TYPE_CHOICES, default="auto",
+                        help=f"enhancement type {index_ranges(range(len(TYPES)))}, "
+                             "or auto (sampled from the dataset mix)")
     parser.add_argument("--seed", type=int, default=0,
                         help="seed; enhance mixes in the material name, as the add-on does")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--on-metal", choices=("refuse", "remap"), default="refuse",
-                        help="when a dielectric-only type (4, 5) meets a metallic material: "
-                             "fail (default) or use the type resolve_type picks instead")
+                        help=f"when a dielectric-only type ({index_ranges(DIELECTRIC_ONLY)}) meets a metallic "
+                             "material: fail (default) or use the type resolve_type picks instead")
 
 
 def schema_version() -> str:

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import bpy
 
+from ..core.enhancement_types import DIELECTRIC_ONLY
 from ..core.prompt import prompt_type
 from . import bake, mesh_maps, neural_assets, neural_backend, uplift
 from .cycles_builder import enable_osl
@@ -307,7 +308,7 @@ class RICHMAT_OT_generate_material(_BackendOperator, bpy.types.Operator):
         try:
             uplift.uplift(obj, False, str(type_), s.seed)
         except InputProblem:
-            if type_ < 4:
+            if type_ not in DIELECTRIC_ONLY:
                 raise
             uplift.uplift(obj, False, str(prompt_type(s.prompt, metallic=True)[0]), s.seed)  # a metal
         enable_osl(context.scene)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import bpy
 
 from ..core import schema
-from ..core.enhance import TYPE_DESCRIPTIONS
+from ..core.enhancement_types import TYPES
 from . import uplift
 from .cycles_builder import SCRIPT_NODE
 
@@ -31,7 +31,7 @@ def draw_richmat(layout: bpy.types.UILayout, context: bpy.types.Context) -> None
     col = layout.column()
     col.prop(s, "enhancement_type")
     if s.enhancement_type != "AUTO":
-        col.label(text=TYPE_DESCRIPTIONS[int(s.enhancement_type)])
+        col.label(text=TYPES[int(s.enhancement_type)].description)
     col.prop(s, "seed")
     col.prop(s, "all_slots")
     col.operator("richmat.uplift_material", icon="SHADING_RENDERED")

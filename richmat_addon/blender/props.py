@@ -3,10 +3,11 @@ from __future__ import annotations
 
 import bpy
 
-from ..core.enhance import TYPE_DESCRIPTIONS
+from ..core.enhancement_types import DIELECTRIC_ONLY, TYPES, index_ranges
 
-TYPE_ITEMS = [("AUTO", "Auto", "Draw a type from the paper's dataset mix (no 4-5 on metals)")] + [
-    (str(k), f"{k}: {text.split(':')[0].split(' (')[0]}", text) for k, text in TYPE_DESCRIPTIONS.items()]
+TYPE_ITEMS = [("AUTO", "Auto",
+               f"Draw a type from the paper's dataset mix (no {index_ranges(DIELECTRIC_ONLY)} on metals)")] + [
+    (str(t.index), f"{t.index}: {t.label}", t.description) for t in TYPES]
 
 
 class RichmatSceneSettings(bpy.types.PropertyGroup):

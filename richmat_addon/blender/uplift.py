@@ -19,11 +19,11 @@ import bpy
 import numpy as np
 
 from ..core.enhance import enhance, resolve_type
+from ..core.enhancement_types import DUST_TYPES, METAL_TYPES, index_ranges
 from ..core.maps import EnhancedMaterial, ParamMap, PbrInputs
 from . import cycles_builder, mesh_maps
 from .pbr_source import InputProblem, PbrSources, load_pbr, read_sources
 
-DUST_TYPES = frozenset({1, 3})
 PREVIEW_SIZE = 512  # longest side of the maps uplift makes (interactive); Bake writes full size
 SUFFIX = " (richmat)"
 _KEEP_FRAME = "richmat_frame_original"
@@ -82,7 +82,7 @@ def enhance_slot(p: SlotPlan, requested: str, seed: int, max_size: int | None) -
     pbr = load_pbr(p.sources, max_size)
     type_, note = resolve_type(pbr, "auto" if requested == "AUTO" else int(requested), seed)
     if requested != "AUTO" and type_ != int(requested):
-        raise InputProblem(f"{note}; choose a type in 0-3 or Auto for metals")
+        raise InputProblem(f"{note}; choose a type in {index_ranges(METAL_TYPES)} or Auto for metals")
     normals = positions = None
     size = _texture_size(pbr)
     if type_ in DUST_TYPES and size is not None and mesh_maps.has_uvs(p.obj):

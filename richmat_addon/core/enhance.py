@@ -15,21 +15,11 @@ from collections.abc import Callable
 import numpy as np
 
 from . import masks
+from .enhancement_types import (DIELECTRIC_ONLY, FAMILIES, METAL_REMAP, METAL_TYPES, TYPE_MIX, TYPES,
+                                index_ranges)
 from .maps import EnhancedMaterial, ParamMap, PbrInputs
 from .schema import PARAM_BY_NAME, PARAMS
 
-TYPE_DESCRIPTIONS: dict[int, str] = {
-    0: "Haze: core + haze highlights on every material",
-    1: "Dust: haze plus dust on upward-facing surfaces",
-    2: "Clearcoat: haze plus a glossy coat, sometimes damaged",
-    3: "Dust + clearcoat",
-    4: "Fuzz + inner and subcutaneous scattering (dielectrics only)",
-    5: "Fuzz + clearcoat + inner and subcutaneous scattering (dielectrics only)",
-}
-TYPE_MIX: tuple[float, ...] = (0.1, 0.2, 0.2, 0.2, 0.1, 0.2)  # the paper's dataset mix
-DIELECTRIC_ONLY = (4, 5)
-# What a dielectric-only type becomes on a metal: drop the scattering, keep the rest.
-METAL_REMAP = {4: 1, 5: 3}
 DUST_MASK_FLOOR = 0.35  # dust weight between mask features, as a share of the peak
 METALLIC_THRESHOLD = 0.5  # mean metalness above which a material counts as a metal
 
@@ -55,11 +45,12 @@ def resolve_type(pbr: PbrInputs, requested: int | str, seed: int) -> tuple[int, 
         probs = np.array(TYPE_MIX)
         if metal:
             probs[list(DIELECTRIC_ONLY)] = 0.0
-        type_ = int(_rng(seed, pbr.name, "type").choice(6, p=probs / probs.sum()))
-        return type_, f"auto: type {type_}" + (" (metal: types 4-5 excluded)" if metal else "")
+        type_ = int(_rng(seed, pbr.name, "type").choice(len(TYPES), p=probs / probs.sum()))
+        return type_, f"auto: type {type_}" + (f" (metal: types {index_ranges(DIELECTRIC_ONLY)} excluded)"
+                                               if metal else "")
     type_ = int(requested)
-    if type_ not in TYPE_DESCRIPTIONS:
-        raise ValueError(f"unknown enhancement type {requested!r}; use 0-5 or 'auto'")
+    if not 0 <= type_ < len(TYPES):
+        raise ValueError(f"unknown enhancement type {requested!r}; use {index_ranges(range(len(TYPES)))} or 'auto'")
     if metal and type_ in DIELECTRIC_ONLY:
         return METAL_REMAP[type_], (f"type {type_} is for dielectrics and {pbr.name!r} is metallic "
                                     f"(mean metalness > {METALLIC_THRESHOLD}); used type "
@@ -131,7 +122,7 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
     """Enhance one material. Types 4/5 on a metal raise ValueError (see resolve_type)."""
     resolved, note = resolve_type(pbr, type_, seed)
     if type_ != "auto" and resolved != int(type_):
-        raise ValueError(f"{pbr.name}: {note}. Choose a type in 0-3 for metals.")
+        raise ValueError(f"{pbr.name}: {note}. Choose a type in {index_ranges(METAL_TYPES)} for metals.")
     rng = _rng(seed, pbr.name, "params")
     base = _clean(pbr.base_color, 0.0, 1.0, "base colour", pbr.name)
     rough = _clean(pbr.roughness, 0.0, 1.0, "roughness", pbr.name)
@@ -139,7 +130,7 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
 
     s = {"type": resolved, "type_note": note, "seed": seed,
          "p": rng.uniform(2.2, 3.5), "q": rng.uniform(1.2, 1.8), "s": rng.uniform(1.1, 1.6),
-         "haze_weight": rng.uniform(0.1, 0.4), "diel_ior": rng.uniform(1.4, 1.7),
+         "haze_weight": rng.uniform(*FAMILIES["haze"].drawn), "diel_ior": rng.uniform(1.4, 1.7),
          "edge_tint": rng.uniform(0.85, 1.0)}
     lum = base @ np.array([0.2126, 0.7152, 0.0722], np.float32)
     values: dict[str, np.ndarray | float] = {
@@ -149,15 +140,14 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
     }
     if metal.ndim == 1 and metal[0] == 0.0:
         del values["spec_color"]  # no conductor anywhere: keep the constant default
-    lobes = {0: (), 1: ("dust",), 2: ("coat",), 3: ("dust", "coat"),
-             4: ("fuzz", "scatter"), 5: ("fuzz", "coat", "scatter")}[resolved]
+    lobes = TYPES[resolved].lobes
     if "dust" in lobes:
-        s.update(dust_peak=rng.uniform(0.3, 0.9), dust_roughness=rng.uniform(0.3, 0.8))
+        s.update(dust_peak=rng.uniform(*FAMILIES["dust"].drawn), dust_roughness=rng.uniform(0.3, 0.8))
         values["dust_weight"] = _dust_weight(pbr, rng, s["dust_peak"], world_normals,
                                              world_positions, s)
         values["dust_roughness"] = s["dust_roughness"]
     if "fuzz" in lobes:
-        s.update(fuzz_weight=rng.uniform(0.2, 0.7), fuzz_roughness=rng.uniform(0.3, 0.8))
+        s.update(fuzz_weight=rng.uniform(*FAMILIES["fuzz"].drawn), fuzz_roughness=rng.uniform(0.3, 0.8))
         values["dust_weight"], values["dust_roughness"] = s["fuzz_weight"], s["fuzz_roughness"]
     if "coat" in lobes:
         s.update(coat_ior=rng.uniform(1.45, 1.6), coat_alpha=rng.uniform(0.0025, 0.02),
@@ -169,7 +159,7 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
         values["coat_weight"] = 1.0 if s["coat_damage"] == "none" else \
             1.0 - _uv_mask(masks.DAMAGE_MASKS[s["coat_damage"]], damage_shape, rng)
     if "scatter" in lobes:
-        s.update(inner_weight=rng.uniform(0.2, 0.6), inner_roughness=rng.uniform(0.3, 0.7),
+        s.update(inner_weight=rng.uniform(*FAMILIES["scatter"].drawn), inner_roughness=rng.uniform(0.3, 0.7),
                  subsurf_alpha=rng.uniform(0.5, 0.9), subsurf_ior=rng.uniform(1.3, 1.5))
         # Gentle desaturation: 30 % toward grey, then lifted a little toward white.
         values["scatter_color"] = 0.85 * (0.7 * base + 0.3 * lum[..., None]) + 0.15

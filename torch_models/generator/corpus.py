@@ -16,7 +16,7 @@ Two sources feed it:
   resolution).
 - procedural assets (``from_procedural``): enhanced with ``core.enhance`` and
   encoded to latents with the shipped encoder (optionally refined by a few fit
-  steps), rendered with the torch rasteriser of ``views.py``. This is the fast
+  steps, ``encoding.py``), rendered with the torch rasteriser of ``views.py``. This is the fast
   path: batch's per-asset cost (its latent fit and Cycles, minutes per asset on 2
   cores, docs/batch.md) makes it too slow for a corpus of hundreds here.
 
@@ -35,10 +35,12 @@ import torch
 from safetensors.torch import load_file, save_file
 from torch import Tensor
 
+from richmat_addon.core.captions import caption
 from richmat_addon.core.enhance import enhance, is_metallic
+from richmat_addon.core.enhancement_plan import asset_type, material_type
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
-from richmat_addon.core.schema import PARAMS
 from . import procedural, text
+from .encoding import latent_texture
 from .mesh_input import MeshInput
 from .prior import prior_latents
 from .views import CONDITION_CHANNELS, Cameras, IntrinsicViews, orbit_cameras, render_intrinsics
@@ -81,40 +83,14 @@ class Sample:
                    t["conditions"].float(), t["unknown_prior"].float(), t["text"])
 
 
-def pack_vectors(material: EnhancedMaterial, shape: tuple[int, int]) -> np.ndarray:
-    """Per-texel schema vectors (H*W, 22) of an enhanced material; constants broadcast."""
-    n = shape[0] * shape[1]
-    cols = [np.broadcast_to(material.params[p.name].value.reshape(-1, p.channels), (n, p.channels))
-            for p in PARAMS]
-    return np.concatenate(cols, 1).astype(np.float32)
-
-
-def latent_texture(material: EnhancedMaterial, shape: tuple[int, int], fit_steps: int = 0) -> np.ndarray:
-    """(H, W, 6) latents: the shipped encoder per distinct texel vector, optionally refined by the fit."""
-    from ..neural import fitting, weights
-
-    vectors = pack_vectors(material, shape)
-    unique, inverse = np.unique(vectors, axis=0, return_inverse=True)
-    model = weights.load()
-    if fit_steps:
-        z = fitting.fit_latents(model, unique, fit_steps, batch=4096)
-    else:
-        with torch.no_grad():
-            z = model.encoder(torch.from_numpy(unique))
-    return z.numpy()[inverse.ravel()].reshape(*shape, -1)
-
-
 def caption_for(shape: str, material: EnhancedMaterial, metallic: bool) -> str:
-    """batch's caption (colour, family, enhancement keywords with strength) for one procedural object."""
-    from batch.captions import caption  # the same wording as the batch-rendered corpus
-
+    """The batch-rendered corpus's caption (colour, family, enhancement keywords with strength) for one
+    procedural object."""
     return caption(shape, [{"name": material.name, "metallic": metallic, "settings": material.settings,
                             "mean_base_color": material.base_color.mean().tolist()}])
 
 
 def _type_for(asset_id: str, metallic: bool, seed: int) -> int:
-    from batch.enhancement_plan import asset_type, material_type
-
     return material_type(asset_type(asset_id, seed), metallic)[0]
 
 

@@ -56,7 +56,7 @@ def diffuse_fallback_latent() -> Tensor:
     """(6,) the shipped encoder's latent of a plain rough dielectric: what unseen UV islands get."""
     from richmat_addon.core.enhance import baseline
     from ..neural import weights
-    from .corpus import pack_vectors
+    from .encoding import pack_vectors
 
     plain = baseline(PbrInputs("fallback", ParamMap.constant(0.8, 0.8, 0.8), ParamMap.constant(1.0),
                                ParamMap.constant(0.0)))

@@ -18,6 +18,7 @@ import numpy as np
 
 from richmat_addon.core.enhance import enhance, resolve_type
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
+from .encoding import latent_texture
 from .mesh_input import resize_nearest
 
 PRIOR_SEED = 2 ** 40  # far from every corpus object's own draws (corpus.enhancement_seed)
@@ -49,7 +50,5 @@ def prior_material(base_color: np.ndarray, roughness_metalness: np.ndarray | Non
 def prior_latents(base_color: np.ndarray, roughness_metalness: np.ndarray | None, type_: int,
                   normals: np.ndarray, positions: np.ndarray) -> np.ndarray:
     """(H, W, 6) the shipped encoder's latents of the prior material, at the normals' texture size."""
-    from .corpus import latent_texture
-
     material = prior_material(base_color, roughness_metalness, type_, normals, positions)
     return latent_texture(material, normals.shape[:2])

@@ -19,12 +19,16 @@ import torch
 from torch import Tensor
 
 from richmat_addon.core.enhance import DUST_MASK_FLOOR, enhance
+from richmat_addon.core.enhancement_types import DUST_TYPES, METAL_TYPES, TYPES, types_with
 from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.schema import CHANNEL_SLICES, bounds
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
 
 GGX_ALPHAS = ("alpha_core", "alpha_haze", "coat_alpha", "subsurf_alpha")
-CLASSES: dict[str, tuple[int, ...]] = {"haze": (0,), "dust": (1, 3), "clearcoat": (2, 3), "scattering": (4, 5)}
+# Type 5's coat is drawn in the scattering class.
+CLASSES: dict[str, tuple[int, ...]] = {
+    "haze": tuple(t.index for t in TYPES if not t.lobes), "dust": types_with("dust"),
+    "clearcoat": tuple(t for t in types_with("coat") if t in METAL_TYPES), "scattering": types_with("scatter")}
 INFILL = 0.2
 
 
@@ -32,14 +36,14 @@ def _one(rng: np.random.Generator, theme: str) -> np.ndarray:
     """One packed parameter vector of a themed class."""
     types = CLASSES[theme]
     type_ = int(rng.choice(types))
-    metal = 0.0 if type_ >= 4 else float(rng.choice([0.0, 1.0, rng.uniform()], p=[0.55, 0.35, 0.1]))
+    metal = 0.0 if TYPES[type_].dielectric_only else float(rng.choice([0.0, 1.0, rng.uniform()], p=[0.55, 0.35, 0.1]))
     pbr = PbrInputs("train", ParamMap.constant(*rng.uniform(0.0, 1.0, 3)),
                     ParamMap.constant(rng.uniform(0.0, 1.0)), ParamMap.constant(metal))
     mat = enhance(pbr, type_, int(rng.integers(1 << 31)))
     vec = np.concatenate([np.atleast_1d(mat.params[name].mean()) for name in CHANNEL_SLICES])
-    if type_ in (1, 3):  # dust masks: between the floor and the peak
+    if type_ in DUST_TYPES:  # dust masks: between the floor and the peak
         vec[CHANNEL_SLICES["dust_weight"]] *= rng.uniform(DUST_MASK_FLOOR, 1.0)
-    if type_ in (2, 3, 5) and rng.uniform() < 0.3:  # damaged coat texels
+    if type_ in types_with("coat") and rng.uniform() < 0.3:  # damaged coat texels
         vec[CHANNEL_SLICES["coat_weight"]] = rng.uniform()
     return vec
 

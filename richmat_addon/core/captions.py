@@ -3,7 +3,9 @@
 Asset name, material names, the colour of each material's mean base colour,
 metal or not, plus the enhancement keywords with their strength ("light dust",
 "scratched glossy clearcoat"), as the paper augments its captions with the
-enhancement type.
+enhancement type. Its words are the families of ``enhancement_types``, the table
+prompts are read with (``prompt``). In core because batch captions its renders and
+the generator's procedural corpus (torch_models) captions its objects alike.
 """
 from __future__ import annotations
 
@@ -11,12 +13,12 @@ import colorsys
 import re
 from typing import Any, Sequence
 
+from .enhancement_types import BASE_FAMILY, FAMILIES
+
 # Hue names by upper bound of the hue angle in degrees.
 _HUES = ((15, "red"), (45, "orange"), (70, "yellow"), (160, "green"), (200, "cyan"),
          (260, "blue"), (300, "purple"), (345, "pink"), (360, "red"))
 
-
-_DAMAGED = {"scratches": "scratched", "dents": "dented"}
 
 
 def colour_name(linear_rgb: Sequence[float]) -> str:
@@ -39,17 +41,21 @@ def _strength(value: float, lo: float, hi: float) -> str:
 
 
 def enhancement_keywords(settings: dict[str, Any]) -> list[str]:
-    """Keywords of one material's enhancement settings (``params.json``'s ``settings``)."""
-    words = [f"{_strength(settings.get('haze_weight', 0.25), 0.1, 0.4)} haze"]
-    if "dust_peak" in settings:
-        words.append(f"{_strength(settings['dust_peak'], 0.3, 0.9)} dust")
-    if "fuzz_weight" in settings:
-        words.append(f"{_strength(settings['fuzz_weight'], 0.2, 0.7)} fuzz")
-    if "coat_ior" in settings:
-        damage = settings.get("coat_damage", "none")
-        words.append("glossy clearcoat" if damage == "none" else f"{_DAMAGED.get(damage, damage)} glossy clearcoat")
-    if "inner_weight" in settings:
-        words.append(f"{_strength(settings['inner_weight'], 0.2, 0.6)} subsurface scattering")
+    """Keywords of one material's enhancement settings (``params.json``'s ``settings``): each family
+    applied (the base family always), in ``FAMILIES`` order, with its strength or damage."""
+    words = []
+    for family in FAMILIES.values():
+        if family.setting not in settings and family.name != BASE_FAMILY:
+            continue
+        prefix = ""
+        if family.drawn is not None:
+            lo, hi = family.drawn
+            prefix = _strength(settings.get(family.setting, (lo + hi) / 2), lo, hi) + " "
+        if family.damage is not None:
+            key, adjectives = family.damage
+            damage = settings.get(key, "none")
+            prefix += "" if damage == "none" else adjectives.get(damage, damage) + " "
+        words.append(prefix + family.noun)
     return words
 
 

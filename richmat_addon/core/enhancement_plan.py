@@ -2,14 +2,14 @@
 
 One type per asset (the paper assigns types per object); a metallic material
 in an asset drawn as Type 4 or 5 gets the dielectric-free remap of
-``core.enhance`` (4 -> 1, 5 -> 3), noted in its params.json. Drawn from a hash,
+``enhancement_types.METAL_REMAP`` (4 -> 1, 5 -> 3), noted in its params.json. Drawn from a hash,
 not from a shared random stream, so a shard or a retry gives the same answer.
 """
 from __future__ import annotations
 
 import hashlib
 
-from richmat_addon.core.enhance import DIELECTRIC_ONLY, METAL_REMAP, TYPE_MIX
+from .enhancement_types import DIELECTRIC_ONLY, METAL_REMAP, TYPE_MIX
 
 
 def asset_type(asset_id: str, seed: int) -> int:
