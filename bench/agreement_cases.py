@@ -13,6 +13,7 @@ import numpy as np
 
 from richmat_addon.core import graph
 from richmat_addon.core.enhance import enhance, is_metallic
+from richmat_addon.core.enhancement_types import METAL_TYPES, TYPES
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
 from richmat_addon.core.schema import CHANNEL_SLICES
 
@@ -66,9 +67,9 @@ def cases(seed: int, per_type: int, per_lobe: int) -> list[Case]:
     """``per_type`` surface cases for each of Types 0-5, ``per_lobe`` isolated cases per lobe."""
     rng = np.random.default_rng(seed)
     out = []
-    for type_ in range(6):
+    for type_ in range(len(TYPES)):
         for k in range(per_type):
-            metal = type_ in (0, 1, 2, 3) and k % 2 == 1  # metals where the type allows them
+            metal = type_ in METAL_TYPES and k % 2 == 1  # metals where the type allows them
             out.append(_drawn(rng, type_, metal, f"type{type_}_{'metal' if metal else 'diel'}_{k}"))
     lobes = {lobe.name: lobe for lobe in graph.iter_lobes(graph.SURFACE)}
     for name, (type_, metal) in LOBE_SOURCES.items():

@@ -24,6 +24,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
 from agreement_cases import cases  # noqa: E402
+from richmat_addon.core.enhancement_types import TYPES  # noqa: E402
 from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.fitting import fit_latents  # noqa: E402
@@ -67,7 +68,7 @@ def main() -> None:
     types = np.array([int(c.name[4]) for c in drawn])
     summary = {str(mu): {"median_ratio": float(np.median(ratio[:, a])),
                          "p10": float(np.percentile(ratio[:, a], 10)), "p90": float(np.percentile(ratio[:, a], 90)),
-                         "median_ratio_per_type": [float(np.median(ratio[types == t, a])) for t in range(6)]}
+                         "median_ratio_per_type": [float(np.median(ratio[types == t, a])) for t in range(len(TYPES))]}
                for a, mu in enumerate(VIEW_COSINES)}
     report = {"per_type": args.per_type, "seed": args.seed, "steps": args.steps, "decoder_sha256": model.digest,
               "view_cosines": VIEW_COSINES, "summary": summary, "wall_seconds": time.perf_counter() - start,
@@ -91,7 +92,7 @@ def chart(ratio: np.ndarray, types: np.ndarray, path: Path, seed: int) -> None:
     mu = np.array(VIEW_COSINES)
     ax.fill_between(mu, np.percentile(ratio, 10, 0), np.percentile(ratio, 90, 0), color="gray", alpha=0.25,
                     label="all materials, 10-90 %")
-    for t in range(6):
+    for t in range(len(TYPES)):
         ax.plot(mu, np.median(ratio[types == t], 0), "o-", ms=3, label=f"Type {t} median")
     ax.axhline(1.0, color="black", lw=0.8)
     ax.set_xscale("log")

@@ -22,6 +22,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from richmat_addon.core.enhance import enhance  # noqa: E402
+from richmat_addon.core.enhancement_types import TYPES  # noqa: E402
 from richmat_addon.core.maps import ParamMap, PbrInputs  # noqa: E402
 from torch_models.brdf.model import LayeredBsdf  # noqa: E402
 
@@ -60,7 +61,7 @@ def main() -> None:
     args = parser.parse_args()
     torch.manual_seed(0)
     gen = torch.Generator().manual_seed(0)
-    cases = {f"type {t}": bsdf_for(t, 0.0) for t in range(6)}
+    cases = {f"type {t}": bsdf_for(t, 0.0) for t in range(len(TYPES))}
     cases["type 0, metalness 0.5"] = bsdf_for(0, 0.5)
     samples: dict[str, dict[int, list[float]]] = {k: {n: [] for n in BATCHES} for k in cases}
     for _ in range(args.repeats):

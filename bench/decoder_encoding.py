@@ -26,6 +26,7 @@ sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
 from agreement_cases import cases  # noqa: E402
 from fit_speed import decoder_throughput  # noqa: E402
+from richmat_addon.core.enhancement_types import TYPES  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.evaluate import BallSetup, fit_and_compare  # noqa: E402
 from torch_models.neural.networks import DIRECTION_ENCODINGS  # noqa: E402
@@ -70,7 +71,7 @@ def main() -> None:
             results, _ = fit_and_compare(setup, model, vectors, colours, args.fit_steps)
             flips = np.array([r.flip for r in results])
             row["per_type"] = [{"type": t, "median": float(np.median(flips[types == t])),
-                                "worst": float(flips[types == t].max())} for t in range(6)]
+                                "worst": float(flips[types == t].max())} for t in range(len(TYPES))]
             row["median_flip"], row["worst_flip"] = float(np.median(flips)), float(flips.max())
             row["evals_per_second"], row["flops_per_eval"] = decoder_throughput(model)
             rows.append(row)
@@ -90,11 +91,12 @@ def chart(report: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 3, figsize=(14, 4))
+    types = range(len(TYPES))
     for r in report["encodings"]:
         steps, loss = zip(*r["loss_history"])
         axes[0].plot(steps, loss, marker="o", ms=3, label=r["encoding"])
-        line = axes[1].plot(range(6), [p["median"] for p in r["per_type"]], "o-", label=f"{r['encoding']} median")[0]
-        axes[1].plot(range(6), [p["worst"] for p in r["per_type"]], "s:", color=line.get_color(),
+        line = axes[1].plot(types, [p["median"] for p in r["per_type"]], "o-", label=f"{r['encoding']} median")[0]
+        axes[1].plot(types, [p["worst"] for p in r["per_type"]], "s:", color=line.get_color(),
                      label=f"{r['encoding']} worst")
         axes[2].scatter(r["evals_per_second"] / 1e6, r["median_flip"], color=line.get_color(), label=r["encoding"])
     axes[0].set(title="decoder loss (training)", xlabel="step", yscale="log")

@@ -42,6 +42,7 @@ def run(args: argparse.Namespace) -> int:
 
     from richmat_addon.core.builtin import chipped_paint, sphere_texel_geometry
     from richmat_addon.core.enhance import enhance
+    from richmat_addon.core.enhancement_types import TYPES
 
     from .cli_enhance import write_material
     from .cli import InputError
@@ -52,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     pbr = chipped_paint(args.size)
     normals, positions = sphere_texel_geometry(args.size, args.size)
     materials = []
-    for type_ in tqdm(range(6), desc="enhance", unit="type"):
+    for type_ in tqdm(range(len(TYPES)), desc="enhance", unit="type"):
         mat = enhance(pbr, type_, args.seed, world_normals=normals, world_positions=positions)
         write_material(args.out / f"type_{type_}", mat,
                        {"asset": "built-in chipped_paint", "material": pbr.name, "requested_type": type_})
