@@ -1,13 +1,16 @@
 """The add-on's neural preview (OSL in Cycles) against the torch renderer, per type.
 
-For one material per type (bench/agreement_cases.py, latent from the encoder),
-renders the preview ball with the torch renderer (``NeuralBsdf``, probe MIS) and
-with Cycles running the shader of ``richmat_addon/core/neural_osl.py``, same
-probe, scene and networks; reports mean LDR-FLIP (AgX, sRGB, 67 ppd) per type
-and the torch-vs-torch noise floor (two seeds). Writes the JSON and, beside it,
-a PNG sheet (Cycles | torch | FLIP map, one row per type).
+For one material per type (bench/agreement_cases.py, latent from each decoder's
+encoder), renders the preview ball with the torch renderer (``NeuralBsdf``, probe
+MIS) and with Cycles running the shader of ``richmat_addon/core/neural_osl.py``,
+same probe, scene and networks; reports mean LDR-FLIP (AgX, sRGB, 67 ppd) per
+type and the torch-vs-torch noise floor (two seeds). Several weights folders
+(``--weights`` again; each names its decoder kind) are measured side by side on
+the same materials, each with its FLIP and its Cycles render time. Writes the
+JSON and, beside it, a PNG sheet (Cycles | torch | FLIP map, one row per type and
+weights folder).
 
-    python bench/preview_agreement.py [--weights RUN] [--resolution 48] [--spp 1024]
+    python bench/preview_agreement.py [--weights RUN ...] [--resolution 48] [--spp 1024]
         [--cycles-spp 384] [--directions 8] [--out docs/preview_agreement.json]
 
 Target (issue 4): mean FLIP <= 0.05.
@@ -32,6 +35,7 @@ sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
 from agreement import contact_sheet  # noqa: E402
 from agreement_cases import cases  # noqa: E402
+from provenance import provenance  # noqa: E402
 from richmat_addon.core.schema import CHANNEL_SLICES  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.bsdf import NeuralBsdf  # noqa: E402
@@ -43,7 +47,7 @@ from torch_models.render.tonemap import agx  # noqa: E402
 TARGET = 0.05
 
 CYCLES = """
-import json, sys, numpy as np, bpy
+import json, sys, time, numpy as np, bpy
 from pathlib import Path
 from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
 prefer_blender_bundled_modules()
@@ -67,75 +71,105 @@ scene.cycles.shading_system = True
 node.inputs["probe"].default_value = job["probe"]
 node.inputs["samples"].default_value = job["directions"]
 res = job["resolution"]
+seconds = {}
 for case in job["cases"]:
     node.inputs["latent_0"].default_value = case["z"][:3]
     node.inputs["latent_1"].default_value = case["z"][3:]
     node.inputs["base_color"].default_value = (*case["base"], 1.0)
     path = Path(job["out"]) / (case["name"] + ".exr")
+    start = time.perf_counter()
     preview_scene.render_exr(scene, path)
+    seconds[case["name"]] = time.perf_counter() - start
     img = bpy.data.images.load(str(path))
     px = np.empty(res * res * 4, np.float32)
     img.pixels.foreach_get(px)
     np.save(path.with_suffix(".npy"), px.reshape(res, res, 4)[::-1, :, :3])
     bpy.data.images.remove(img)
+(Path(job["out"]) / "seconds.json").write_text(json.dumps(seconds))
 """
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
-    parser.add_argument("--resolution", type=int, default=48)
-    parser.add_argument("--spp", type=int, default=1024, help="torch renderer samples per pixel")
-    parser.add_argument("--cycles-spp", type=int, default=384)
-    parser.add_argument("--directions", type=int, default=8, help="shader directions per shading point")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "preview_agreement.json")
-    args = parser.parse_args()
-
-    start = time.perf_counter()
-    model = weights.load(args.weights)
-    setup = BallSetup.default(args.resolution, args.spp, 0)
-    drawn = cases(0, 1, 0)
-    job_cases, torch_images, floors = [], {}, {}
-    for case in drawn:
+def torch_side(model: weights.NeuralModel, setup: BallSetup, spp: int) -> tuple[list[dict], dict, dict]:
+    """The cases' latents and base colours, their torch images and the torch-vs-torch noise floors."""
+    job_cases, images, floors = [], {}, {}
+    for case in cases(0, 1, 0):
         vector = np.concatenate([np.atleast_1d(case.params[k]) for k in CHANNEL_SLICES]).astype(np.float32)
         with torch.no_grad():
             z = model.encoder(torch.from_numpy(vector)[None])
         base = np.asarray(case.base_color, np.float32)
         bsdf = NeuralBsdf(model, z, torch.as_tensor(base)[None], 1.0)
         with torch.no_grad():
-            images = [render_ball(lambda n: bsdf, setup.env, setup.scene, args.spp, seed).rgb for seed in (0, 1)]
-        torch_images[case.name] = images[0]
-        floors[case.name] = mean_flip(agx(images[0]), agx(images[1]))
+            pair = [render_ball(lambda n: bsdf, setup.env, setup.scene, spp, seed).rgb for seed in (0, 1)]
+        images[case.name] = pair[0]
+        floors[case.name] = mean_flip(agx(pair[0]), agx(pair[1]))
         job_cases.append({"name": case.name, "z": z[0].tolist(), "base": base.tolist()})
-        print(f"{case.name}: torch done", flush=True)
+    return job_cases, images, floors
 
+
+def cycles_side(folder: Path, job_cases: list[dict], args: argparse.Namespace, tmp: Path) -> dict[str, float]:
+    """Renders every case with the shader generated from ``folder``'s weights into ``tmp``; the render seconds per case."""
+    job = {"weights": str(folder / "weights.safetensors"), "probe": str(DEFAULT_PROBE),
+           "resolution": args.resolution, "spp": args.cycles_spp, "directions": args.directions,
+           "cases": job_cases, "out": str(tmp)}
+    (tmp / "job.json").write_text(json.dumps(job))
+    (tmp / "preview_cycles_job.py").write_text(textwrap.dedent(CYCLES))
+    subprocess.run([sys.executable, str(tmp / "preview_cycles_job.py"), str(tmp / "job.json")],
+                   check=True, capture_output=True,
+                   env={**os.environ, "PYTHONPATH": str(REPO), "BLENDER_USER_RESOURCES": str(tmp)})
+    return json.loads((tmp / "seconds.json").read_text())
+
+
+def measure(folder: Path, setup: BallSetup, args: argparse.Namespace, sheet: list) -> dict:
+    """One weights folder's entry of the report; appends its rows to the contact sheet."""
+    model = weights.load(folder)
+    kind = model.decoder.kind
+    job_cases, torch_images, floors = torch_side(model, setup, args.spp)
+    print(f"{kind} {folder}: torch done", flush=True)
     with tempfile.TemporaryDirectory() as tmp:
-        job = {"weights": str(args.weights / "weights.safetensors"), "probe": str(DEFAULT_PROBE),
-               "resolution": args.resolution, "spp": args.cycles_spp, "directions": args.directions,
-               "cases": job_cases, "out": tmp}
-        (Path(tmp) / "job.json").write_text(json.dumps(job))
-        (Path(tmp) / "preview_cycles_job.py").write_text(textwrap.dedent(CYCLES))
-        subprocess.run([sys.executable, str(Path(tmp) / "preview_cycles_job.py"), str(Path(tmp) / "job.json")],
-                       check=True, capture_output=True,
-                       env={**os.environ, "PYTHONPATH": str(REPO), "BLENDER_USER_RESOURCES": tmp})
-        rows, sheet = [], []
+        seconds = cycles_side(folder, job_cases, args, Path(tmp))
+        rows = []
         for case in job_cases:
-            cycles, reference = agx(np.load(Path(tmp) / (case["name"] + ".npy"))), agx(torch_images[case["name"]])
+            name = case["name"]
+            cycles, reference = agx(np.load(Path(tmp) / (name + ".npy"))), agx(torch_images[name])
             error, flip = flip_map(reference, cycles)
-            sheet.append((case["name"], cycles, reference, error))
-            rows.append({"name": case["name"], "flip": flip, "torch_noise_floor": floors[case["name"]]})
-            print(f"{case['name']}: FLIP {flip:.4f} (torch vs torch {floors[case['name']]:.4f})", flush=True)
+            sheet.append((f"{kind}: {name}", cycles, reference, error))
+            rows.append({"name": name, "flip": flip, "torch_noise_floor": floors[name],
+                         "cycles_render_seconds": seconds[name]})
+            print(f"{kind} {name}: FLIP {flip:.4f} (torch vs torch {floors[name]:.4f}), "
+                  f"Cycles {seconds[name]:.1f} s", flush=True)
     mean = float(np.mean([r["flip"] for r in rows]))
-    report = {"resolution": args.resolution, "torch_spp": args.spp, "cycles_spp": args.cycles_spp,
-              "directions": args.directions, "weights": str(args.weights), "decoder_sha256": model.digest,
+    return {"weights": str(folder), "kind": kind, "decoder_sha256": model.digest, "mean_flip": mean,
+            "worst_flip": max(r["flip"] for r in rows), "passed": mean <= TARGET,
+            "cycles_render_seconds": sum(seconds.values()), "cases": rows}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--weights", type=Path, action="append",
+                        help="a weights folder; repeat to compare several (default: the shipped one)")
+    parser.add_argument("--resolution", type=int, default=48)
+    parser.add_argument("--spp", type=int, default=1024, help="torch renderer samples per pixel")
+    parser.add_argument("--cycles-spp", type=int, default=384)
+    parser.add_argument("--directions", type=int, default=8, help="shader directions per shading point")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "preview_agreement.json")
+    args = parser.parse_args()
+    folders = args.weights or [weights.SHIPPED]
+
+    start = time.perf_counter()
+    setup = BallSetup.default(args.resolution, args.spp, 0)
+    sheet: list = []
+    runs = [measure(folder, setup, args, sheet) for folder in folders]
+    report = {"provenance": provenance(folders), "resolution": args.resolution, "torch_spp": args.spp,
+              "cycles_spp": args.cycles_spp, "directions": args.directions,
               "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
-              "mean_flip": mean, "worst_flip": max(r["flip"] for r in rows), "target": TARGET,
-              "passed": mean <= TARGET, "cases": rows,
+              "target": TARGET, "passed": all(r["passed"] for r in runs), "runs": runs,
               "wall_seconds": time.perf_counter() - start}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=1))
     contact_sheet(sheet, args.out.with_suffix(".png"))
-    print(f"mean FLIP {mean:.4f} (target {TARGET})")
+    for r in runs:
+        print(f"{r['kind']} {r['weights']}: mean FLIP {r['mean_flip']:.4f} (target {TARGET}), "
+              f"Cycles {r['cycles_render_seconds']:.1f} s")
 
 
 if __name__ == "__main__":

@@ -1,50 +1,53 @@
-"""An OSL shader that evaluates the frozen neural-material decoder (numpy only).
+"""An OSL shader that evaluates a frozen neural-material decoder (numpy only).
 
 OSL cannot define new BSDFs, so the preview splits the neural material
 ``f = s f_neu + T(wi) c / pi`` (torch_models/neural/bsdf.py) in two:
 
-* the diffuse base ``T(wi) c`` is a real ``diffuse()`` closure, lit by Cycles
-  (every light, shadows, indirect light). The decoder outputs T from the same
-  network as f, so it varies with wo although it should not; the torch
-  renderer reads it at every sampled wo, so the closure takes its mean over
-  ``t_samples`` cosine-distributed wo and an emission adds the covariance of T
-  and the world's radiance over them: world light then reaches the base as
-  ``c integral T L cos / pi``, as in the torch renderer. (Read at the single
-  point wo = wi, which training never shows, T made the base 40 % too dark at
-  normal incidence for one material and 12-14 % too bright over the preview
-  ball for two.)
+* the diffuse base ``T c`` is a real ``diffuse()`` closure, lit by Cycles
+  (every light, shadows, indirect light). The hybrid decoder's T is a slot
+  weight of its head, a function of wi alone: the closure's weight is exact.
+  The MLP decoder outputs T from the same network as f, so it varies with wo
+  although it should not; the torch renderer reads it at every sampled wo, so
+  the closure takes its mean over ``t_samples`` cosine-distributed wo and an
+  emission adds the covariance of T and the world's radiance over them (read
+  at the single point wo = wi, which training never shows, T made the base up
+  to 40 % too dark).
 * the neural lobe is an ``emission()`` whose radiance is a Monte Carlo estimate
   of ``integral f_neu cos L_world dwo`` inside the shader: ``samples``
-  directions from the sampling decoder (its mixture pdf), the decoder at each,
-  and the world probe looked up with ``texture()`` in Blender's
+  directions from the decoder's sampler (the MLP's sampling decoder, or the
+  hybrid's own GGX and diffuse lobes) with its exact mixture pdf, the decoder
+  at each, and the world probe looked up with ``texture()`` in Blender's
   equirectangular mapping. It sees the world only (no lamps, no shadows).
   Random numbers are hashed from the shading position, which moves with
   Cycles' pixel jitter, so more Cycles samples converge.
 
-The network weights are written into the source as constant arrays, so the
-shader needs nothing but its latent textures. Layer layout and activations
-follow ``torch_models/neural/networks.py`` exactly: decoder input
-``[z(6), wi, wo, h, wi.h]``, plus ``ln(tan^2 theta_h) / 8`` for the "half_log_slope"
-encoding (told apart by the first layer's width), ReLU hidden layers, outputs ``max(exp(min(x, 12)) - 1, 0)``
-for f*cos (zero below either horizon), sigmoid for T and R; sampling decoder
-input ``[z(6), wi]`` with the tilted-cosine + sheared-GGX mixture. Directions
-are local to the Duff et al. tangent frame the torch renderer uses.
+The kind is read from the tensor names (``decoder.net.*`` with ``sampler.net.*``,
+or ``decoder.head.*``, ``decoder.gates.*`` and ``decoder.alpha_floor``). The
+weights are written into the source as constant arrays, so the shader needs
+nothing but its latent textures. Both kinds share the shader and its interface;
+each supplies ``setup`` (per shading point), ``decode``, ``lobe_pdf`` and
+``lobe_sample``, following ``networks.py`` and ``hybrid.py`` exactly.
+Directions are local to the Duff et al. tangent frame the torch renderer uses.
 """
 from __future__ import annotations
 
 import json
+import math
 import struct
 from pathlib import Path
 
 import numpy as np
 
 MAX_LOG_F = 12.0  # networks.MAX_LOG_F
-# Share of directions drawn uniformly over the hemisphere: at grazing views the
-# sampling decoder's pdf is thin where f is not, and f/pdf becomes heavy-tailed
-# (a dark rim with rare fireflies); the uniform share bounds it.
-UNIFORM_SHARE = 0.2
+# Share of the MLP's directions drawn uniformly over the hemisphere: at grazing views
+# the sampling decoder's pdf is thin where f is not, and f/pdf becomes heavy-tailed
+# (a dark rim with rare fireflies); the uniform share bounds it. The hybrid samples its
+# own lobes, whose f/pdf is bounded by construction, and needs none.
+UNIFORM_SHARE = {"mlp": 0.2, "hybrid": 0.0}
 LOG_SLOPE_FLOOR = 1e-10  # networks.LOG_SLOPE_FLOOR
-# The decoder's input width names its direction encoding (networks.DIRECTION_ENCODINGS):
+LOG_ALPHA_MIN = math.log(1e-4)  # hybrid.LOG_ALPHA_MIN
+LUMINANCE = (0.2126, 0.7152, 0.0722)  # brdf.model.LUMINANCE
+# A network's input width names its direction encoding (networks.DIRECTION_ENCODINGS):
 # 6 latents + 10 ("half") or + 11 ("half_log_slope", which appends ln(tan^2 theta_h) / 8).
 _ENCODING_EXTRA = {16: "", 17: ", log_slope"}
 _DTYPES = {"F32": np.float32, "F16": np.float16, "F64": np.float64}
@@ -66,9 +69,9 @@ def read_safetensors(path: str | Path) -> dict[str, np.ndarray]:
 
 
 def _layers(tensors: dict[str, np.ndarray], prefix: str) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(weight (out, in), bias) of each Linear of an ``mlp`` (indices 0, 2, 4, ...)."""
-    keys = sorted({int(k.split(".")[2]) for k in tensors if k.startswith(prefix + ".net.")})
-    return [(tensors[f"{prefix}.net.{i}.weight"], tensors[f"{prefix}.net.{i}.bias"]) for i in keys]
+    """(weight (out, in), bias) of each Linear of the ``mlp`` named prefix (``decoder.net``: indices 0, 2, ...)."""
+    keys = sorted({int(k[len(prefix) + 1:].split(".")[0]) for k in tensors if k.startswith(prefix + ".")})
+    return [(tensors[f"{prefix}.{i}.weight"], tensors[f"{prefix}.{i}.bias"]) for i in keys]
 
 
 def _array(name: str, values: np.ndarray) -> str:
@@ -96,18 +99,45 @@ def _mlp_function(name: str, layers: list[tuple[np.ndarray, np.ndarray]]) -> str
     return src + "}\n\n"
 
 
-_BODY = r"""
-float sinh_approx(float x) { return x * sqrt(1.0 + x * x); }
-float tanh_approx(float x) { return x / sqrt(1.0 + x * x); }
+_COMMON = r"""
 float sigmoid(float x) { return 1.0 / (1.0 + exp(-x)); }
 
-void decode(float z[6], vector wi, vector wo, output color f, output float T)
+// [z(6), wi, wo, h, wi.h] and, for the "half_log_slope" encoding, ln(tan^2 theta_h) / 8
+void net_input(float z[6], vector wi, vector wo, output float x[NET_INPUTS])
 {
     vector h = normalize(wi + wo);
     float hz2 = max(h[2] * h[2], 1e-6);
     float log_slope = log(max(max(1.0 - hz2, 0.0) / hz2, LOG_SLOPE_FLOOR)) / 8.0;
-    float x[DECODER_INPUTS] = {z[0], z[1], z[2], z[3], z[4], z[5], wi[0], wi[1], wi[2], wo[0], wo[1], wo[2],
-                               h[0], h[1], h[2], dot(wi, h) DECODER_EXTRA};
+    float v[NET_INPUTS] = {z[0], z[1], z[2], z[3], z[4], z[5], wi[0], wi[1], wi[2], wo[0], wo[1], wo[2],
+                           h[0], h[1], h[2], dot(wi, h) NET_EXTRA};
+    for (int i = 0; i < NET_INPUTS; i++)
+        x[i] = v[i];
+}
+
+color world_radiance(string probe, float rotation, color world_color, vector d)
+{
+    if (probe == "")
+        return world_color;
+    float c = cos(rotation), s = sin(rotation);
+    vector p = vector(c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]);
+    float u = 0.5 - atan2(p[1], p[0]) / M_2PI;
+    u = u - floor(u);
+    float v = 0.5 + atan2(p[2], hypot(p[0], p[1])) / M_PI;
+    // Zero derivatives: automatic ones (through P and the hashed samples) would pick a blurred MIP level.
+    return (color)texture(probe, u, 1.0 - v, 0, 0, 0, 0, "interp", "bilinear", "swrap", "periodic",
+                          "twrap", "clamp");
+}
+"""
+
+_MLP = r"""
+float sinh_approx(float x) { return x * sqrt(1.0 + x * x); }
+float tanh_approx(float x) { return x / sqrt(1.0 + x * x); }
+
+// s: the sampling decoder's mixture at wi, which decoding does not read
+void decode(float z[6], float s[STATE], vector wi, vector wo, output color f, output float T)
+{
+    float x[NET_INPUTS];
+    net_input(z, wi, wo, x);
     float y[5];
     decoder_mlp(x, y);
     float above = (wi[2] > 0 && wo[2] > 0) ? 1.0 : 0.0;
@@ -117,7 +147,7 @@ void decode(float z[6], vector wi, vector wo, output color f, output float T)
 
 vector tilted_normal(float tx, float ty) { return normalize(vector(-tx, -ty, 1.0)); }
 
-float mixture_pdf(float m[9], vector wi, vector wo)
+float lobe_pdf(float m[STATE], vector wi, vector wo)
 {
     float p_cos = max(dot(wo, tilted_normal(m[2], m[3])), 0.0) / M_PI;
     vector h = normalize(wi + wo);
@@ -136,7 +166,7 @@ float mixture_pdf(float m[9], vector wi, vector wo)
     return wo[2] > 0 ? m[0] * p_cos + m[1] * p_ggx : 0.0;
 }
 
-vector mixture_sample(float m[9], vector wi, float u0, float u1, float u2)
+vector lobe_sample(float m[STATE], vector wi, float u0, float u1, float u2)
 {
     if (u0 < m[0]) {
         vector n = tilted_normal(m[2], m[3]);
@@ -154,7 +184,8 @@ vector mixture_sample(float m[9], vector wi, float u0, float u1, float u2)
     return 2.0 * dot(wi, h) * h - wi;
 }
 
-void mixture(float z[6], vector wi, output float m[9])
+// the sampling decoder: a tilted cosine lobe and a sheared GGX lobe
+void setup(float z[6], vector wi, output float m[STATE])
 {
     float x[9] = {z[0], z[1], z[2], z[3], z[4], z[5], wi[0], wi[1], wi[2]};
     float o[9];
@@ -170,21 +201,118 @@ void mixture(float z[6], vector wi, output float m[9])
     m[7] = sinh_approx(o[7]);
     m[8] = sinh_approx(o[8]);
 }
+"""
 
-color world_radiance(string probe, float rotation, color world_color, vector d)
+# s: alphas [0, K), Schlick F0s [F0S, F0S + 3K), diffuse colour [DIFFUSE, +3),
+# slot weights [WEIGHTS, +K+3) (the GGX lobes, diffuse, T, absorbed), component probabilities [PROBS, +K+1)
+_HYBRID = r"""
+float pow5(float x) { return x * x * x * x * x; }
+float luminance_at(float s[STATE], int i) { return LUM_R * s[i] + LUM_G * s[i + 1] + LUM_B * s[i + 2]; }
+float ggx_d(vector h, float a2) { float q = h[0] * h[0] + h[1] * h[1] + a2 * h[2] * h[2]; return a2 / (M_PI * q * q); }
+float ggx_lambda(vector w, float a2)
 {
-    if (probe == "")
-        return world_color;
-    float c = cos(rotation), s = sin(rotation);
-    vector p = vector(c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]);
-    float u = 0.5 - atan2(p[1], p[0]) / M_2PI;
-    u = u - floor(u);
-    float v = 0.5 + atan2(p[2], hypot(p[0], p[1])) / M_PI;
-    // Zero derivatives: automatic ones (through P and the hashed samples) would pick a blurred MIP level.
-    return (color)texture(probe, u, 1.0 - v, 0, 0, 0, 0, "interp", "bilinear", "swrap", "periodic",
-                          "twrap", "clamp");
+    float c = max(w[2], 1e-12);
+    return 0.5 * (sqrt(1.0 + a2 * (w[0] * w[0] + w[1] * w[1]) / (c * c)) - 1.0);
 }
 
+// the head at (z, wi): lobes, slot weights and the sampler's component probabilities
+void setup(float z[6], vector wi, output float s[STATE])
+{
+    float c = clamp(wi[2], 0.0, 1.0);
+    float x[9] = {z[0], z[1], z[2], z[3], z[4], z[5], c, sqrt(1.0 - c * c), pow5(1.0 - c)};
+    float o[HEAD_OUTPUTS];
+    head_mlp(x, o);
+    for (int k = 0; k < LOBES; k++) {
+        float a = exp(LOG_ALPHA_MIN * (1.0 - sigmoid(o[k])));
+        s[k] = sqrt(a * a + ALPHA_FLOOR * ALPHA_FLOOR);
+    }
+    for (int i = F0S; i < WEIGHTS; i++)
+        s[i] = sigmoid(o[i]);
+    float top = o[WEIGHTS], total = 0.0;
+    for (int i = WEIGHTS; i < PROBS; i++)
+        top = max(top, o[i]);
+    for (int i = WEIGHTS; i < PROBS; i++) {
+        s[i] = exp(o[i] - top);
+        total += s[i];
+    }
+    for (int i = WEIGHTS; i < PROBS; i++)
+        s[i] /= total;
+    float schlick = pow5(1.0 - c), sum = 0.0;
+    for (int k = 0; k <= LOBES; k++) {
+        float albedo = k < LOBES ? luminance_at(s, F0S + 3 * k) : luminance_at(s, DIFFUSE);
+        if (k < LOBES)
+            albedo += (1.0 - albedo) * schlick;
+        s[PROBS + k] = s[WEIGHTS + k] * albedo + 1e-6;
+        sum += s[PROBS + k];
+    }
+    for (int k = 0; k <= LOBES; k++)
+        s[PROBS + k] /= sum;
+}
+
+void decode(float z[6], float s[STATE], vector wi, vector wo, output color f, output float T)
+{
+    T = s[WEIGHTS + LOBES + 1];
+    f = 0;
+    if (wi[2] > 0 && wo[2] > 0) {
+        float x[NET_INPUTS];
+        net_input(z, wi, wo, x);
+        float g[GATE_OUTPUTS];
+        gates_mlp(x, g);
+        vector h = normalize(wi + wo);
+        float cos_i = max(wi[2], 1e-12), schlick = pow5(1.0 - clamp(dot(wi, h), 0.0, 1.0));
+        for (int k = 0; k < LOBES; k++) {
+            float a2 = s[k] * s[k];
+            float single = ggx_d(h, a2) / ((1.0 + ggx_lambda(wi, a2) + ggx_lambda(wo, a2)) * 4.0 * cos_i);
+            color f0 = color(s[F0S + 3 * k], s[F0S + 3 * k + 1], s[F0S + 3 * k + 2]);
+            color gate = color(sigmoid(g[3 * k]), sigmoid(g[3 * k + 1]), sigmoid(g[3 * k + 2]));
+            f += s[WEIGHTS + k] * single * (f0 + (1.0 - f0) * schlick) * gate;
+        }
+        color gate = color(sigmoid(g[3 * LOBES]), sigmoid(g[3 * LOBES + 1]), sigmoid(g[3 * LOBES + 2]));
+        f += s[WEIGHTS + LOBES] / M_PI * wo[2] * color(s[DIFFUSE], s[DIFFUSE + 1], s[DIFFUSE + 2]) * gate;
+    }
+}
+
+// ggx.ggx_pdf: D G1(wi) / (4 cos_i), alpha clamped as Cycles does
+float lobe_pdf(float s[STATE], vector wi, vector wo)
+{
+    if (wi[2] <= 0 || wo[2] <= 0)
+        return 0.0;
+    vector h = normalize(wi + wo);
+    float pdf = s[PROBS + LOBES] * wo[2] / M_PI;
+    for (int k = 0; k < LOBES; k++) {
+        float a = clamp(s[k], 1e-4, 1.0);
+        pdf += s[PROBS + k] * ggx_d(h, a * a) / ((1.0 + ggx_lambda(wi, a * a)) * 4.0 * max(wi[2], 1e-12));
+    }
+    return pdf;
+}
+
+// a component by its probability; a GGX lobe by its visible normals (Heitz 2018), the diffuse one by cosine
+vector lobe_sample(float s[STATE], vector wi, float u0, float u1, float u2)
+{
+    int choice = 0;
+    float edge = 0.0;
+    for (int k = 0; k < LOBES; k++) {
+        edge += s[PROBS + k];
+        if (u0 >= edge)
+            choice = k + 1;
+    }
+    float r = sqrt(u1), phi = M_2PI * u2;
+    if (choice == LOBES)
+        return vector(r * cos(phi), r * sin(phi), sqrt(max(1.0 - u1, 0.0)));
+    float a = clamp(s[choice], 1e-4, 1.0);
+    vector wi_s = normalize(vector(a * wi[0], a * wi[1], wi[2]));
+    float lensq = wi_s[0] * wi_s[0] + wi_s[1] * wi_s[1];
+    vector t1 = lensq > 1e-7 ? vector(-wi_s[1], wi_s[0], 0.0) / sqrt(lensq) : vector(1.0, 0.0, 0.0);
+    vector t2 = cross(wi_s, t1);
+    float tx = r * cos(phi), ty = r * sin(phi), w = 0.5 * (1.0 + wi_s[2]);
+    ty = (1.0 - w) * sqrt(max(1.0 - tx * tx, 0.0)) + w * ty;
+    vector hs = tx * t1 + ty * t2 + sqrt(max(1.0 - tx * tx - ty * ty, 0.0)) * wi_s;
+    vector h = normalize(vector(a * hs[0], a * hs[1], max(hs[2], 0.0)));
+    return 2.0 * dot(wi, h) * h - wi;
+}
+"""
+
+_SHADER = r"""
 shader richmat_neural(
     vector latent_0 = 0, vector latent_1 = 0,
     color base_color = 0.8,
@@ -193,7 +321,7 @@ shader richmat_neural(
     float probe_rotation = 0.0,
     color world_color = 0.05,
     int samples = 8,
-    int t_samples = 4,
+    int t_samples = 4,  // the MLP's T over wo; the hybrid's T depends on wi only
     normal Normal = N,
     output closure color BSDF = 0)
 {
@@ -206,13 +334,21 @@ shader richmat_neural(
     vector view = normalize(I);  // Cycles passes its wi here: towards the viewer (checked)
     vector wi = vector(dot(view, t), dot(view, bt), dot(view, n));
     float z[6] = {latent_0[0], latent_0[1], latent_0[2], latent_1[0], latent_1[1], latent_1[2]};
-    color f, L, TL = 0, L_sum = 0;
-    float T = 0, T_k;
+    float s[STATE];
+    setup(z, wi, s);
+    color f;
+    float T;
+#ifdef T_SLOT
+    BSDF = (s[T_SLOT] * base_color) * diffuse(n);
+#else
+    color L, TL = 0, L_sum = 0;
+    float T_k;
+    T = 0;
     int n_t = max(t_samples, 2);
     for (int k = 0; k < n_t; k++) {  // negative seeds: the lobe's directions use 0, 1, 2, ...
         float u1 = hashnoise(P, -1 - 2 * k), r = sqrt(u1), phi = M_2PI * hashnoise(P, -2 - 2 * k);
         vector wo = vector(r * cos(phi), r * sin(phi), sqrt(max(1.0 - u1, 0.0)));
-        decode(z, wi, wo, f, T_k);
+        decode(z, s, wi, wo, f, T_k);
         L = world_radiance(probe, probe_rotation, world_color, wo[0] * t + wo[1] * bt + wo[2] * n);
         T += T_k / n_t;
         TL += T_k * L / n_t;
@@ -222,9 +358,8 @@ shader richmat_neural(
     // T and L over cosine-distributed wo (unbiased: the n/(n-1) of a sample covariance), so the world
     // part is c * integral T L cos / pi, as the torch renderer integrates it.
     BSDF = (T * base_color) * diffuse(n) + base_color * (TL - T * L_sum) * (n_t / (n_t - 1.0)) * emission();
+#endif
     if (wi[2] > 0 && samples > 0) {
-        float m[9];
-        mixture(z, wi, m);
         color sum = 0;
         for (int k = 0; k < samples; k++) {
             float u0 = hashnoise(P, 3 * k), u1 = hashnoise(P, 3 * k + 1), u2 = hashnoise(P, 3 * k + 2);
@@ -233,16 +368,13 @@ shader richmat_neural(
                 float r = sqrt(max(1.0 - u1 * u1, 0.0));
                 wo = vector(r * cos(M_2PI * u2), r * sin(M_2PI * u2), u1);
             } else {
-                wo = mixture_sample(m, wi, (u0 - UNIFORM_SHARE) / (1.0 - UNIFORM_SHARE), u1, u2);
+                wo = lobe_sample(s, wi, (u0 - UNIFORM_SHARE) / (1.0 - UNIFORM_SHARE), u1, u2);
             }
-            float pdf = (1.0 - UNIFORM_SHARE) * mixture_pdf(m, wi, wo)
-                        + (wo[2] > 0 ? UNIFORM_SHARE / M_2PI : 0.0);
+            float pdf = (1.0 - UNIFORM_SHARE) * lobe_pdf(s, wi, wo) + (wo[2] > 0 ? UNIFORM_SHARE / M_2PI : 0.0);
             if (pdf <= 0.0)
                 continue;
-            float unused;
-            decode(z, wi, wo, f, unused);
-            sum += f * world_radiance(probe, probe_rotation, world_color,
-                                      wo[0] * t + wo[1] * bt + wo[2] * n) / pdf;
+            decode(z, s, wi, wo, f, T);
+            sum += f * world_radiance(probe, probe_rotation, world_color, wo[0] * t + wo[1] * bt + wo[2] * n) / pdf;
         }
         BSDF += (energy_scale / samples) * sum * emission();
     }
@@ -250,16 +382,39 @@ shader richmat_neural(
 """
 
 
-def neural_osl_source(tensors: dict[str, np.ndarray]) -> str:
-    """The preview shader for a trained model's tensors (decoder.* and sampler.* keys)."""
-    decoder, sampler = _layers(tensors, "decoder"), _layers(tensors, "sampler")
+def _defines(**values: object) -> str:
+    return "".join(f"#define {k} {v}\n" for k, v in values.items())
+
+
+def _mlp_parts(tensors: dict[str, np.ndarray]) -> str:
+    decoder, sampler = _layers(tensors, "decoder.net"), _layers(tensors, "sampler.net")
     inputs = decoder[0][0].shape[1]
     if inputs not in _ENCODING_EXTRA or decoder[-1][0].shape[0] != 5 or sampler[-1][0].shape[0] != 9:
-        raise ValueError("the weights do not match the decoder layout this shader implements "
+        raise ValueError("the weights do not match the MLP decoder layout this shader implements "
                          "(decoder 16 or 17 -> 5, sampling decoder 9 -> 9)")
+    return (_defines(NET_INPUTS=inputs, NET_EXTRA=_ENCODING_EXTRA[inputs], STATE=9, UNIFORM_SHARE=UNIFORM_SHARE["mlp"])
+            + _mlp_function("decoder_mlp", decoder) + _mlp_function("sampler_mlp", sampler) + _COMMON + _MLP)
+
+
+def _hybrid_parts(tensors: dict[str, np.ndarray]) -> str:
+    head, gates = _layers(tensors, "decoder.head"), _layers(tensors, "decoder.gates")
+    k = (head[-1][0].shape[0] - 7) // 5
+    if (head[0][0].shape[1] != 9 or head[-1][0].shape[0] != 5 * k + 7 or k < 1 or gates[0][0].shape[1] != 16
+            or gates[-1][0].shape[0] != 3 * (k + 1) or "decoder.alpha_floor" not in tensors):
+        raise ValueError("the weights do not match the hybrid decoder layout this shader implements "
+                         "(head 9 -> 5K + 7, gates 16 -> 3K + 3, alpha_floor)")
+    r, g, b = LUMINANCE
+    return (_defines(NET_INPUTS=16, NET_EXTRA="", LOBES=k, HEAD_OUTPUTS=5 * k + 7, GATE_OUTPUTS=3 * k + 3, F0S=k, DIFFUSE=4 * k,
+                     WEIGHTS=4 * k + 3, PROBS=5 * k + 6, STATE=6 * k + 7, T_SLOT=5 * k + 4,
+                     ALPHA_FLOOR=f"{float(tensors['decoder.alpha_floor']):.9g}", LOG_ALPHA_MIN=f"{LOG_ALPHA_MIN:.9g}",
+                     LUM_R=r, LUM_G=g, LUM_B=b, UNIFORM_SHARE=UNIFORM_SHARE["hybrid"])
+            + _mlp_function("head_mlp", head) + _mlp_function("gates_mlp", gates) + _COMMON + _HYBRID)
+
+
+def neural_osl_source(tensors: dict[str, np.ndarray]) -> str:
+    """The preview shader for a trained model's tensors, of the decoder kind their names say."""
+    parts = _hybrid_parts(tensors) if "decoder.alpha_floor" in tensors or any(
+        k.startswith("decoder.head.") for k in tensors) else _mlp_parts(tensors)
     return ("// Generated by richmat_addon.core.neural_osl from trained weights: do not edit.\n"
             "#include \"stdosl.h\"\n\n"
-            f"#define MAX_LOG_F {MAX_LOG_F}\n#define UNIFORM_SHARE {UNIFORM_SHARE}\n"
-            f"#define LOG_SLOPE_FLOOR {LOG_SLOPE_FLOOR}\n"
-            f"#define DECODER_INPUTS {inputs}\n#define DECODER_EXTRA {_ENCODING_EXTRA[inputs]}\n\n"
-            + _mlp_function("decoder_mlp", decoder) + _mlp_function("sampler_mlp", sampler) + _BODY)
+            + _defines(MAX_LOG_F=MAX_LOG_F, LOG_SLOPE_FLOOR=LOG_SLOPE_FLOOR) + parts + _SHADER)
