@@ -11,7 +11,7 @@ import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
-from torch_models.cli_enhance import safe_name
+from richmat_addon.core.material_folder import safe_name
 
 IMPORTABLE = frozenset({".glb", ".gltf", ".obj", ".fbx", ".ply", ".stl",
                         ".usd", ".usda", ".usdc", ".usdz", ".blend"})

@@ -35,10 +35,10 @@ UNTEXTURED_DUST_SIZE = 256  # texture size for dust masks of a material without 
 
 def prepare(args: argparse.Namespace) -> None:
     from richmat_addon.blender import mesh_maps
+    from richmat_addon.core import material_folder
     from richmat_addon.core.enhance import enhance, is_metallic
     from richmat_addon.core.enhancement_plan import material_type
     from richmat_addon.core.enhancement_types import DUST_TYPES
-    from torch_models.cli_enhance import safe_name, write_material
 
     from batch import bl_materials, bl_scene
 
@@ -61,8 +61,9 @@ def prepare(args: argparse.Namespace) -> None:
             size = max(sizes, key=lambda s: s[0] * s[1]) if sizes else (min(UNTEXTURED_DUST_SIZE, args.max_texture),) * 2
             normals, positions, world_note = mesh_maps.world_maps(bl_materials.material_surfaces(mat), size)
         enhanced = enhance(source.pbr, type_, args.seed, world_normals=normals, world_positions=positions)
-        folder = args.work / "materials" / safe_name(mat.name, taken)
-        write_material(folder, enhanced, {"asset": args.asset.name, "material": mat.name, "type_note": type_note})
+        folder = args.work / "materials" / material_folder.safe_name(mat.name, taken)
+        material_folder.write(folder, enhanced,
+                              {"asset": args.asset.name, "material": mat.name, "type_note": type_note})
         materials.append({"name": mat.name, "folder": folder.name, "type": type_, "type_note": type_note,
                           "metallic": metallic, "mean_base_color": source.pbr.base_color.mean().tolist(),
                           "settings": enhanced.settings,

@@ -14,8 +14,7 @@ from pathlib import Path
 import bpy
 
 from richmat_addon.blender.cycles_builder import COLOR_SPACE_COLOR, COLOR_SPACE_DATA, build_material
-
-from . import material_folder
+from richmat_addon.core import material_folder, neural_folder
 
 
 def _aov(tree: bpy.types.NodeTree, name: str) -> bpy.types.Node:
@@ -34,9 +33,11 @@ def _texture(tree: bpy.types.NodeTree, path: str, colour: bool) -> bpy.types.Nod
 
 def build(folder: Path) -> tuple[bpy.types.Material, bpy.types.Material]:
     """(beauty material, intrinsics material) of one prepared material folder."""
-    mat, paths, record = material_folder.load(folder)
-    beauty = build_material(mat, paths, name=f"richmat_{record['material']}")
-    material = bpy.data.materials.new(f"richmat_aov_{record['material']}")
+    baked = material_folder.read(folder)
+    mat = baked.material()
+    paths = {name: str(path) for name, path in baked.texture_paths.items()}
+    beauty = build_material(mat, paths, name=f"richmat_{mat.name}")
+    material = bpy.data.materials.new(f"richmat_aov_{mat.name}")
     tree = material.node_tree
     tree.nodes.clear()
     surface = tree.nodes.new("ShaderNodeBsdfDiffuse")  # opaque: without a surface Cycles sees through it
@@ -46,14 +47,15 @@ def build(folder: Path) -> tuple[bpy.types.Material, bpy.types.Material]:
         tree.links.new(_texture(tree, paths["base_color"], colour=True).outputs["Color"], base.inputs["Color"])
     else:
         base.inputs["Color"].default_value = (*mat.base_color.value[:3].tolist(), 1.0)
-    files, values = material_folder.latents(folder)
+    neural = neural_folder.read(folder / "neural")
     for i, name in enumerate(("latent_a", "latent_b")):
         node = _aov(tree, name)
-        if files is not None:
-            tree.links.new(_texture(tree, files[i], colour=False).outputs["Color"], node.inputs["Color"])
+        if neural.latent_paths is not None:
+            latent = _texture(tree, str(neural.latent_paths[i]), colour=False)
+            tree.links.new(latent.outputs["Color"], node.inputs["Color"])
         else:  # a colour socket's own value cannot be negative; latents can
             xyz = tree.nodes.new("ShaderNodeCombineXYZ")
-            for axis, value in zip("XYZ", values[3 * i:3 * i + 3]):
+            for axis, value in zip("XYZ", neural.latent[3 * i:3 * i + 3]):
                 xyz.inputs[axis].default_value = value
             tree.links.new(xyz.outputs["Vector"], node.inputs["Color"])
     _aov(tree, "coverage").inputs["Value"].default_value = 1.0

@@ -28,16 +28,17 @@ def main(argv: list[str]) -> int:
     sys.path.insert(0, str(REPO))
     import torch
 
+    from richmat_addon.core import material_folder, neural_folder
     from torch_models.cli import main as torch_models_main
 
     torch.set_num_threads(args.threads)
     record: dict = {"torch_version": torch.__version__, "decoder": str(args.decoder), "materials": {}}
-    for folder in sorted(p.parent for p in (args.work / "materials").glob("*/params.json")):
+    for folder in sorted(p.parent for p in (args.work / "materials").glob(f"*/{material_folder.RECORD}")):
         code = torch_models_main(["fit", str(folder), "--out", str(folder / "neural"),
                                   "--weights", str(args.decoder), "--steps", str(args.steps)])
         if code != 0:
             raise SystemExit(f"fit of {folder.name} failed with exit code {code}")
-        neural = json.loads((folder / "neural" / "neural.json").read_text())
+        neural = neural_folder.read(folder / "neural").record
         record["materials"][folder.name] = {"furnace": neural["furnace"], "final_loss": neural["final_loss"],
                                             "fitted_vectors": neural["fitted_vectors"],
                                             "decoder_sha256": neural["decoder_sha256"]}

@@ -49,6 +49,7 @@ PIPELINE = r'''
 import math
 from mathutils import Vector
 from bl_ext.user_default.richmat.blender import preview_scene, uplift
+from bl_ext.user_default.richmat.core import neural_folder
 from bl_ext.user_default.richmat.core.preview import PreviewScene
 
 OUT, RENDERS = Path(OUT), Path(RENDERS)
@@ -97,14 +98,14 @@ def render_png(name):
 
 def latent_view(enhanced):
     """An emission material showing latent 0 of a fitted material (0.5 + 0.25 z)."""
-    record = json.loads((Path(enhanced.richmat.neural_dir) / "neural.json").read_text())
+    neural = neural_folder.read(Path(enhanced.richmat.neural_dir))
     mat = bpy.data.materials.new(enhanced.name + " latent view")
     tree = mat.node_tree
     tree.nodes.clear()
     emission = tree.nodes.new("ShaderNodeEmission")
     tree.links.new(emission.outputs["Emission"], tree.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
-    if "latent" in record:
-        emission.inputs["Color"].default_value = (*[0.5 + 0.25 * z for z in record["latent"][:3]], 1.0)
+    if neural.latent is not None:
+        emission.inputs["Color"].default_value = (*[0.5 + 0.25 * z for z in neural.latent[:3]], 1.0)
         return mat
     image = tree.nodes.new("ShaderNodeTexImage")
     image.image = enhanced.node_tree.nodes["neural_latent_0"].image
@@ -160,7 +161,7 @@ def fit_all():
             if res != {"FINISHED"}:
                 errors.append(f"{obj.name} / {enhanced.name}: {err or sorted(res)}")
                 continue
-            record = json.loads((Path(enhanced.richmat.neural_dir) / "neural.json").read_text())
+            record = neural_folder.read(Path(enhanced.richmat.neural_dir)).record
             details[enhanced.name].update({k: record.get(k) for k in (
                 "texels", "exact_unique_vectors", "fitted_vectors", "final_loss", "furnace")})
     return errors, details

@@ -29,6 +29,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
 from agreement_cases import Case, cases  # noqa: E402
+from richmat_addon.core.folder_io import read_exr  # noqa: E402
 from richmat_addon.core.preview import PreviewScene  # noqa: E402
 from torch_models.brdf.model import LayeredBsdf  # noqa: E402
 from torch_models.render.ball import render_ball  # noqa: E402
@@ -66,12 +67,6 @@ def reused_cycles(folder: Path, all_cases: list[Case], probe: Path, resolution: 
     same = (job["cases"] == [asdict(c) for c in all_cases] and job["resolution"] == resolution
             and job["samples"] == samples and job["seed"] == seed and Path(job["probe"]) == probe)
     return times if same else None
-
-
-def read_exr(path: Path) -> np.ndarray:
-    import OpenImageIO as oiio
-
-    return oiio.ImageBuf(str(path)).get_pixels(oiio.FLOAT)[..., :3]
 
 
 def torch_bsdf(case: Case) -> LayeredBsdf:
@@ -150,7 +145,7 @@ def main() -> None:
         for case in all_cases:
             bsdf = torch_bsdf(case)
             result = render_ball(lambda n, b=bsdf: b, env, scene, spp, args.seed)
-            cy, to = agx(read_exr(Path(tmp) / f"{case.name}.exr")), agx(result.rgb)
+            cy, to = agx(read_exr(Path(tmp) / f"{case.name}.exr")[..., :3]), agx(result.rgb)
             error, flip = flip_map(cy, to)
             rows.append({"name": case.name, "node": case.node, "flip": flip,
                          "cycles_seconds": cycles_times[case.name], "torch_seconds": result.seconds,

@@ -30,12 +30,13 @@ import torch
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO)]
 
+from richmat_addon.core import material_folder  # noqa: E402
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors  # noqa: E402
 from torch_models.cli import main as cli  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.bsdf import NeuralBsdf  # noqa: E402
 from torch_models.neural.evaluate import DEFAULT_PROBE, compare  # noqa: E402
-from torch_models.neural.material_vectors import MaterialVectors, read_exr, read_vectors  # noqa: E402
+from torch_models.neural.material_vectors import MaterialVectors, read_vectors  # noqa: E402
 from torch_models.neural.fitting import fit_latents  # noqa: E402
 from torch_models.render.ball import shade_gbuffer  # noqa: E402
 from torch_models.render.envmap import EnvMap  # noqa: E402
@@ -59,14 +60,13 @@ def crop_vectors(folder: Path, mv: MaterialVectors) -> tuple[np.ndarray, np.ndar
     r0, c0 = (h - CROP) // 2, (w - CROP) // 2
     rows = (np.arange(r0, r0 + CROP)[:, None] * w + np.arange(c0, c0 + CROP)[None, :]).ravel()
     vectors = mv.unique[mv.inverse[rows]]
-    record = json.loads((folder / "params.json").read_text())
-    base = record["textures"].get("base_color")
-    if base:
-        img = read_exr(folder / base)
+    base = material_folder.read(folder).map("base_color")
+    if not base.is_constant:
+        img = base.value
         ys, xs = np.divmod(rows, w)
         colours = img[ys * img.shape[0] // h, xs * img.shape[1] // w, :3]
     else:
-        colours = np.broadcast_to(np.asarray(record["constants"]["base_color"], np.float32)[:3], (len(rows), 3))
+        colours = np.broadcast_to(base.value[:3], (len(rows), 3))
     return vectors, np.ascontiguousarray(colours, np.float32)
 
 
@@ -101,7 +101,7 @@ def main() -> None:
                 print(f"{asset.name}: enhance refused it, skipped")
                 continue
             largest = None
-            for folder in sorted(p.parent for p in out.rglob("params.json")):
+            for folder in sorted(p.parent for p in out.rglob(material_folder.RECORD)):
                 mv = read_vectors(folder)
                 texels = len(mv.inverse) if mv.shape else 1
                 materials.append({"asset": asset.name, "material": folder.name, "texels": texels,

@@ -44,7 +44,7 @@ def script(body: str, zip_path: Path) -> str:
 
 
 PRELUDE = r'''
-import json, os, sys, time
+import importlib, json, os, sys, time
 from pathlib import Path
 import numpy as np
 import bpy, addon_utils
@@ -187,7 +187,7 @@ assert res == {{"FINISHED"}}, err
 baked = obj.active_material
 baked_dir = Path(baked.richmat.bake_dir)
 files = sorted(p.name for p in baked_dir.iterdir())
-params = json.loads((baked_dir / "params.json").read_text())
+params = importlib.import_module(MODULE + ".core.material_folder").read(baked_dir).record
 baked_images = sorted(Path(n.image.filepath).name for n in baked.node_tree.nodes
                       if n.bl_idname == "ShaderNodeTexImage" and n.name.startswith("tex_"))
 res, err = run_op("export_materialx", directory={str(tmp_path / "mtlx")!r})

@@ -23,7 +23,7 @@ res, err = run_op("generate_material")
 enhanced = obj.active_material
 nodes = {n.name: n.image.name for n in enhanced.node_tree.nodes if n.name.startswith("neural_latent")}
 neural = Path(enhanced.richmat.neural_dir) if enhanced.richmat.neural_dir else None
-record = json.loads((neural / "neural.json").read_text()) if neural else {}
+record = importlib.import_module(MODULE + ".core.neural_folder").read(neural).record if neural else {}
 pixels = []
 for name in sorted(nodes):
     image = enhanced.node_tree.nodes[name].image

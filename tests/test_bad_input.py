@@ -15,11 +15,12 @@ import pytest
 import torch
 from PIL import Image
 
+from richmat_addon.core import material_folder
+from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.gltf_materials import read_materials
 from torch_models.brdf.model import LayeredBsdf
 from torch_models.cli import main
 from torch_models.cli_enhance import pil_decode
-from tests.test_cli_enhance import read_exr
 from tests.test_gltf_io import _Builder, cube_arrays, glb_bytes
 
 
@@ -107,9 +108,7 @@ def test_extreme_constants_give_a_finite_energy_bounded_bsdf(tmp_path: Path, rou
                                                           "roughnessFactor": roughness, "metallicFactor": metal})
     out = tmp_path / "out"
     assert main(["enhance", str(glb), "--type", "auto", "--seed", "3", "--out", str(out)]) == 0
-    import json
-
-    record = json.loads((out / "m" / "params.json").read_text())
+    record = material_folder.read(out / "m").record
     params = {k: torch.tensor([v], dtype=torch.float32) for k, v in record["constants"].items()
               if k != "base_color"}
     bsdf = LayeredBsdf(params, torch.tensor([record["constants"]["base_color"]], dtype=torch.float32))

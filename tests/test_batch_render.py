@@ -23,6 +23,7 @@ from PIL import Image
 
 from batch import ledger
 from batch.options import DEFAULT_DECODER
+from richmat_addon.core import neural_folder
 
 REPO = Path(__file__).resolve().parents[1]
 DEV_DECODER = Path("/work/runs/decoder_cpu")  # the training run's checkpoint on the project machines
@@ -131,7 +132,7 @@ def test_tiny_batch_renders_good_assets_and_reports_bad_ones(tmp_path: Path) -> 
         assert beauty.shape == (32, 32, 3) and beauty.max() > 20 and beauty[0, 0].max() == 0  # black background
         layers = check_intrinsics(folder / "passes" / "0000.exr")
         if source == "trap.blend":  # one constant material: its fitted latent, negative values included
-            neural = json.loads(next(folder.glob("materials/*/neural/neural.json")).read_text())
+            neural = neural_folder.read(next(folder.glob("materials/*/neural"))).record
             covered = layers["coverage"][..., 0] > 0.99
             seen = np.concatenate([np.median(layers[n][covered][:, :3], axis=0) for n in ("latent_a", "latent_b")])
             assert np.allclose(seen, neural["latent"], atol=2e-3)

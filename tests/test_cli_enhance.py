@@ -6,37 +6,29 @@ fast on two CPU cores).
 """
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
-import OpenImageIO as oiio
 import pytest
 
-from richmat_addon.core import schema
+from richmat_addon.core import material_folder, schema
+from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.gltf_materials import read_materials
 from richmat_addon.core.mtlx import read_back
 from tests.test_gltf_io import pil_decode, write_test_glb
 from torch_models.cli import main
-from torch_models.cli_enhance import safe_name
 
 REPO = Path(__file__).resolve().parents[1]
-
-
-def read_exr(path: Path) -> np.ndarray:
-    buf = oiio.ImageBuf(str(path))
-    assert not buf.has_error, buf.geterror()
-    return buf.get_pixels(oiio.FLOAT)
 
 
 def check_outputs(out: Path) -> dict[str, dict]:
     """Every material folder is complete and consistent; returns params.json per folder."""
     found = {}
     for folder in sorted(p for p in out.iterdir() if p.is_dir()):
-        params = json.loads((folder / "params.json").read_text(encoding="utf-8"))
+        params = material_folder.read(folder).record
         assert (folder / "material.mtlx").is_file()
         assert params["schema_version"].startswith("22ch-")
         assert set(params["constants"]) | set(params["textures"]) == {"base_color", *schema.PARAM_BY_NAME}
@@ -54,7 +46,7 @@ def check_outputs(out: Path) -> dict[str, dict]:
 @pytest.mark.parametrize("name", ["../../escape", "..", ".", "a/b\\c", "C:evil", "CON", "con.txt", "",
                                   "\x00\x1f\x7f", "\u202egnp.exe", "..\\..\\x", "a" * 500])
 def test_safe_name_stays_inside(tmp_path: Path, name: str) -> None:
-    safe = safe_name(name, set())
+    safe = material_folder.safe_name(name, set())
     assert safe and safe not in (".", "..") and not safe.startswith(".")
     assert not set(safe) & set('/\\:*?"<>|') and safe.isprintable()
     assert len(safe.encode()) <= 120
@@ -63,7 +55,7 @@ def test_safe_name_stays_inside(tmp_path: Path, name: str) -> None:
 
 def test_safe_name_keeps_unicode_and_disambiguates() -> None:
     taken: set[str] = set()
-    names = [safe_name(n, taken) for n in ("Stoff 名前", "Mat", "mat", "MAT", "Mat_2")]
+    names = [material_folder.safe_name(n, taken) for n in ("Stoff 名前", "Mat", "mat", "MAT", "Mat_2")]
     assert names == ["Stoff 名前", "Mat", "mat_2", "MAT_3", "Mat_2_2"]
 
 

@@ -7,9 +7,12 @@ import pytest
 import torch
 from PIL import Image
 
-from torch_models.cli import main
+from richmat_addon.core import material_folder, neural_folder
+from richmat_addon.core.enhance import enhance
+from richmat_addon.core.folder_io import read_exr
+from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.prompt import prompt_type
-from torch_models.neural.material_vectors import read_exr
+from torch_models.cli import main
 from tests.test_generator_train import TINY
 
 torch.set_num_threads(1)
@@ -48,7 +51,7 @@ def test_generate_writes_latent_textures_and_a_preview(checkpoint, tmp_path):
     a, b = read_exr(out / "latent_0.exr"), read_exr(out / "latent_1.exr")
     assert a.shape == b.shape == (32, 32, 3)
     assert np.isfinite(a).all() and np.abs(np.concatenate([a, b], -1)).max() <= 1.0 + 1e-3
-    record = json.loads((out / "neural.json").read_text())
+    record = neural_folder.read(out).record
     assert record["type"] == 1 and record["views"] == 3
     guarded = record["energy_scale"] == "energy_scale.exr"  # the guard ran; its map is written when it darkened
     assert guarded == (record["texels_darkened_by_guard"] > 0) == (out / "energy_scale.exr").exists()
@@ -69,7 +72,7 @@ def test_mesh_without_uvs_is_unwrapped(checkpoint, tmp_path):
     out = tmp_path / "out"
     assert main(["generate", str(obj), "--prompt", "plastic ball", "--out", str(out), "--views", "2", "--steps", "1",
                  "--texture-size", "16", "--checkpoint", str(checkpoint), "--no-preview", "--no-energy-guard"]) == 0
-    record = json.loads((out / "neural.json").read_text())
+    record = neural_folder.read(out).record
     assert any("xatlas" in n for n in record["notes"]) and record["type"] == 0 and record["warnings"]
     mesh = trimesh.load(out / "mesh.glb", force="mesh")
     assert mesh.visual.uv is not None and len(mesh.visual.uv) == len(mesh.vertices)
@@ -103,17 +106,25 @@ def test_a_mostly_inpainted_texture_is_warned_about(checkpoint):
     assert many.projection.stats(many.charts)["seen"] > one.projection.stats(one.charts)["seen"]
 
 
+def bake_constants(folder: Path, base_color: tuple[float, float, float], metalness: float, roughness: float,
+                   p: float) -> Path:
+    """A baked folder of constant maps, as the add-on's Bake writes it (alpha_core = roughness^p)."""
+    pbr = PbrInputs("baked", ParamMap.constant(*base_color), ParamMap.constant(roughness), ParamMap.constant(metalness))
+    mat = enhance(pbr, 0, 0)
+    mat.base_color = pbr.base_color
+    mat.params.update(alpha_core=ParamMap.constant(roughness ** p), metalness=pbr.metalness)
+    mat.settings["p"] = p
+    material_folder.write(folder, mat, {"material": "baked"})
+    return folder
+
+
 def test_a_baked_metal_keeps_fuzz_off_and_its_base_colour(checkpoint, tmp_path):
-    baked = tmp_path / "baked"
-    baked.mkdir()
-    (baked / "params.json").write_text(json.dumps(
-        {"textures": {}, "constants": {"base_color": [0.9, 0.2, 0.1], "metalness": 1.0, "alpha_core": 0.3 ** 3},
-         "settings": {"p": 3.0}}))
+    baked = bake_constants(tmp_path / "baked", (0.9, 0.2, 0.1), metalness=1.0, roughness=0.3, p=3.0)
     out = tmp_path / "out"
     assert main(["generate", str(GLB), "--prompt", "soft velvet", "--out", str(out), "--views", "2", "--steps", "1",
                  "--texture-size", "16", "--checkpoint", str(checkpoint), "--material", str(baked),
                  "--no-preview"]) == 0
-    record = json.loads((out / "neural.json").read_text())
+    record = neural_folder.read(out).record
     assert record["type"] == 1 and any("metal" in w for w in record["warnings"])  # not Type 4
     assert np.allclose(read_exr(out / "base_color.exr").reshape(-1, 3), [0.9, 0.2, 0.1], atol=1e-3)
 
@@ -158,11 +169,7 @@ def test_roughness_and_metalness_come_from_the_file_or_the_bake(tmp_path):
     assert bare.roughness_metalness is None and not bare.metallic
     assert any("roughness" in n for n in bare.notes)
 
-    baked = tmp_path / "baked"
-    baked.mkdir()
-    (baked / "params.json").write_text(json.dumps(
-        {"textures": {}, "constants": {"base_color": [0.5, 0.5, 0.5], "metalness": 0.0, "alpha_core": 0.4 ** 2.5},
-         "settings": {"p": 2.5}}))
+    baked = bake_constants(tmp_path / "baked", (0.5, 0.5, 0.5), metalness=0.0, roughness=0.4, p=2.5)
     use_baked_material(bare, baked)
     assert np.allclose(bare.roughness_metalness.reshape(-1, 2), [0.4, 0.0], atol=1e-5)
 

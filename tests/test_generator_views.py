@@ -8,7 +8,7 @@ import torch
 from scipy.ndimage import binary_erosion
 
 from torch_models.generator import corpus, views
-from torch_models.neural.material_vectors import read_exr
+from richmat_addon.core.folder_io import read_exr
 
 torch.set_num_threads(1)
 DATA = Path(__file__).parent / "data" / "generator_batch"

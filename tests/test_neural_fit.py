@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 import torch
 
+from richmat_addon.core import material_folder, neural_folder
 from richmat_addon.core.builtin import chipped_paint, sphere_texel_geometry
 from richmat_addon.core.enhance import enhance
+from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.maps import ParamMap, PbrInputs
 from torch_models.cli import main
-from torch_models.cli_enhance import write_material
 from torch_models.neural import energy, fitting, loss, material_vectors, quadrature
-from tests.test_cli_enhance import read_exr
 from tests.test_neural_training import TINY
 
 
@@ -31,7 +31,7 @@ def tiny_weights(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def textured(tmp_path: Path) -> Path:
     pbr = chipped_paint(8)
     normals, positions = sphere_texel_geometry(8, 8)
-    write_material(tmp_path / "mat", enhance(pbr, 1, 3, normals, positions), {"asset": "test"})
+    material_folder.write(tmp_path / "mat", enhance(pbr, 1, 3, normals, positions), {"asset": "test"})
     return tmp_path / "mat"
 
 
@@ -42,7 +42,7 @@ def test_fit_writes_latent_textures_and_fits_each_vector_once(tiny_weights: Path
     assert len(vectors.unique) <= vectors.exact_unique <= 64
     out = tmp_path / "fit"
     assert main(["fit", str(textured), "--out", str(out), "--weights", str(tiny_weights), "--steps", "5"]) == 0
-    record = json.loads((out / "neural.json").read_text())
+    record = neural_folder.read(out).record
     assert record["fitted_vectors"] == len(vectors.unique) and record["texels"] == 64
     for k in (0, 1):
         latent = read_exr(out / f"latent_{k}.exr")
@@ -114,11 +114,11 @@ def test_a_fit_penalty_joins_the_loss(tiny_weights: Path) -> None:
 
 def test_constant_material_stays_one_vector(tiny_weights: Path, tmp_path: Path) -> None:
     pbr = PbrInputs("c", ParamMap.constant(0.5, 0.4, 0.3), ParamMap.constant(0.3), ParamMap.constant(0.0))
-    write_material(tmp_path / "c", enhance(pbr, 2, 1), {"asset": "test"})
+    material_folder.write(tmp_path / "c", enhance(pbr, 2, 1), {"asset": "test"})
     out = tmp_path / "fit"
     assert main(["fit", str(tmp_path / "c"), "--out", str(out), "--weights", str(tiny_weights),
                  "--steps", "3"]) == 0
-    record = json.loads((out / "neural.json").read_text())
+    record = neural_folder.read(out).record
     assert len(record["latent"]) == 6 and record["fitted_vectors"] == 1
     assert not list(out.glob("*.exr"))
 

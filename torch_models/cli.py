@@ -12,13 +12,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import os
 import sys
-import uuid
-from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator, Sequence
+from typing import Sequence
 
+from richmat_addon.core.folder_io import FormatError, atomic_path  # noqa: F401  (atomic_path: for the commands)
 from richmat_addon.core.gltf_materials import GltfError
 
 PROG = "python -m torch_models"
@@ -37,23 +35,7 @@ class InputError(ValueError):
     """Bad input that the user can fix; reported in one line with exit code 2."""
 
 
-BAD_INPUT: tuple[type[Exception], ...] = (InputError, GltfError)
-
-
-@contextmanager
-def atomic_path(path: Path) -> Iterator[Path]:
-    """A temporary path beside ``path`` that replaces it only if the block succeeds.
-
-    The temporary name keeps the suffix, so writers that pick a format from the
-    extension (OpenImageIO) still work, and the writer creates the file, so it gets
-    the usual permissions. Readers never see a half-written file.
-    """
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}-{uuid.uuid4().hex[:8]}.tmp{path.suffix}")
-    try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+BAD_INPUT: tuple[type[Exception], ...] = (InputError, GltfError, FormatError)  # FormatError: a folder to write again
 
 
 def emit(event: str, **fields: object) -> None:

@@ -40,11 +40,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    from richmat_addon.core import material_folder
     from richmat_addon.core.builtin import chipped_paint, sphere_texel_geometry
     from richmat_addon.core.enhance import enhance
     from richmat_addon.core.enhancement_types import TYPES
 
-    from .cli_enhance import write_material
     from .cli import InputError
     from .demo_render import render_side_by_side
 
@@ -55,8 +55,8 @@ def run(args: argparse.Namespace) -> int:
     materials = []
     for type_ in tqdm(range(len(TYPES)), desc="enhance", unit="type"):
         mat = enhance(pbr, type_, args.seed, world_normals=normals, world_positions=positions)
-        write_material(args.out / f"type_{type_}", mat,
-                       {"asset": "built-in chipped_paint", "material": pbr.name, "requested_type": type_})
+        material_folder.write(args.out / f"type_{type_}", mat,
+                              {"asset": "built-in chipped_paint", "material": pbr.name, "requested_type": type_})
         materials.append(mat)
     image = render_side_by_side(pbr, materials, args.probe, args.resolution, args.spp, args.seed,
                                 args.out / "side_by_side.png")
@@ -76,7 +76,6 @@ def fit_and_compare(args: argparse.Namespace, materials: list) -> None:  # type:
 
     from richmat_addon.core.maps import ParamMap
 
-    from .cli_fit import write_latents
     from .demo_render import neural_bsdf, render_neural_rows
     from .neural import energy, fitting, material_vectors, weights
 
@@ -88,8 +87,7 @@ def fit_and_compare(args: argparse.Namespace, materials: list) -> None:  # type:
         z = fitting.fit_latents(model, vectors.unique, args.fit_steps, seed=args.seed)
         bounded = energy.fit_bounded(model, vectors.unique, z, seed=args.seed)
         z, check = bounded.z, bounded.check
-        record = write_latents(folder / "neural", vectors, bounded)
-        (folder / "neural" / "neural.json").write_text(json.dumps(dict(record, decoder_sha256=model.digest), indent=1))
+        material_vectors.write_fit(folder / "neural", vectors, bounded, model.digest, {})
         latents = ParamMap(vectors.texels(z))
         scales = ParamMap(vectors.texels(check.energy_scale()))
         rows.append((f"Type {mat.type}", mat, lambda n, m=mat, lt=latents, sc=scales:

@@ -15,16 +15,8 @@ is ``{"event": "error", "message"}`` with exit code 2.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:  # torch stays out of ``--help``
-
-    from .neural.energy import BoundedFit
-
-    from .neural.material_vectors import MaterialVectors
 
 HELP = "fit the latent textures of an enhanced material against the frozen decoder"
 
@@ -86,11 +78,10 @@ def run(args: argparse.Namespace) -> int:
     # The energy refit gets no more steps than the fit had: a quick fit stays quick, and what the
     # short refit leaves over the bound is scaled, as the furnace check counts.
     refit_steps = min(energy.REFIT_STEPS, args.steps)
-    record = write_latents(args.out, mv, energy.fit_bounded(model, mv.unique, z, seed=args.seed, steps=refit_steps))
-    record.update(decoder_sha256=model.digest, material=os.path.relpath(args.material, args.out),
-                  steps=args.steps, refit_steps=refit_steps, final_loss=latest["loss"])
-    with atomic_path(args.out / "neural.json") as tmp:
-        tmp.write_text(json.dumps(record, indent=1, sort_keys=True))
+    bounded = energy.fit_bounded(model, mv.unique, z, seed=args.seed, steps=refit_steps)
+    record = material_vectors.write_fit(args.out, mv, bounded, model.digest, {
+        "material": os.path.relpath(args.material, args.out), "steps": args.steps, "refit_steps": refit_steps,
+        "final_loss": latest["loss"]})
     state.unlink(missing_ok=True)
     if jsonl:
         emit_done(args.out)
@@ -101,30 +92,3 @@ def run(args: argparse.Namespace) -> int:
           f"{record['furnace']['repaired_by_scaling']} scaled; wrote {args.out}")
     return 0
 
-
-def write_latents(out: Path, mv: MaterialVectors, bounded: BoundedFit) -> dict:
-    """Write the latent textures (and the energy scale where the furnace repaired) into
-    ``out``; returns the record for neural.json (counts, furnace, the constant latent)."""
-    from .cli_enhance import write_exr
-    from .neural import material_vectors
-
-    out.mkdir(parents=True, exist_ok=True)
-    z, check = bounded.z, bounded.check
-    scale = check.energy_scale()
-    record: dict = {"texels": int(len(mv.inverse)) if mv.shape else 1,
-                    "exact_unique_vectors": mv.exact_unique, "fitted_vectors": len(mv.unique),
-                    "cluster_bound": f"each texel within {material_vectors.QUANT / 2:g} of its representative "
-                                     "per normalised parameter",
-                    "furnace": dict(bounded.counts(), worst_albedo=float(check.albedo.max()))}
-    if mv.shape is None:
-        record["latent"] = [float(x) for x in z[0]]
-        record["energy_scale"] = float(scale[0])
-        return record
-    texels = mv.texels(z)
-    write_exr(out / "latent_0.exr", texels[..., :3])
-    write_exr(out / "latent_1.exr", texels[..., 3:])
-    repaired = bool((scale < 1).any())
-    if repaired:
-        write_exr(out / "energy_scale.exr", mv.texels(scale))
-    record["energy_scale"] = "energy_scale.exr" if repaired else 1.0
-    return record

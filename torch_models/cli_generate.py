@@ -61,12 +61,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
-
     import numpy as np
 
-    from .cli import InputError, atomic_path, emit, emit_done
-    from .cli_enhance import write_exr
+    from richmat_addon.core import neural_folder
+
+    from .cli import InputError, emit, emit_done
     from .generator import generate as gen
     from .generator.mesh_input import load_mesh, use_baked_material
     from .neural import weights
@@ -98,30 +97,23 @@ def run(args: argparse.Namespace) -> int:
     if mismatch:
         result.warnings.append(mismatch)
     args.out.mkdir(parents=True, exist_ok=True)
-    write_exr(args.out / "latent_0.exr", result.latents[..., :3])
-    write_exr(args.out / "latent_1.exr", result.latents[..., 3:])
-    write_exr(args.out / "base_color.exr", inp.base_color)
     darkened = float((result.energy_scale < 1).mean())
-    if darkened > 0:
-        write_exr(args.out / "energy_scale.exr", result.energy_scale[..., None])
     if not inp.had_uvs:
         _write_unwrapped(inp, args.out / "mesh.glb")
-    record = {"prompt": args.prompt, "type": result.type, "seed": args.seed, "steps": args.steps,
+    fields = {"prompt": args.prompt, "type": result.type, "seed": args.seed, "steps": args.steps,
               "views": args.views, "samples": args.samples, "guidance": args.guidance,
               "texture_size": args.texture_size,
               "projection": result.projection.stats(result.charts), "warnings": result.warnings,
-              "notes": inp.notes, "seconds": result.seconds,
-              "energy_scale": "energy_scale.exr" if darkened > 0 else 1.0, "texels_darkened_by_guard": darkened,
+              "notes": inp.notes, "seconds": result.seconds, "texels_darkened_by_guard": darkened,
               "checkpoint": str(args.checkpoint or gen.SHIPPED),
-              "material": str(args.material) if args.material is not None else None,
-              "decoder_sha256": decoder.digest}
+              "material": str(args.material) if args.material is not None else None}
     if not args.no_preview:
         from .render.tonemap import agx, to_png
 
         frames = gen.preview(inp, result.latents, energy_scale=result.energy_scale)
         to_png(np.concatenate(list(agx(frames)), 1), args.out / "preview.png")
-    with atomic_path(args.out / "neural.json") as tmp:
-        tmp.write_text(json.dumps(record, indent=1))
+    record = neural_folder.write(args.out, result.latents, result.energy_scale, decoder.digest, fields,
+                                 {"base_color": inp.base_color})
     if jsonl:
         emit_done(args.out, type=result.type, warnings=result.warnings)
         return 0

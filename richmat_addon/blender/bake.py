@@ -10,20 +10,18 @@ ones. Each material bakes into its own folder, claimed by the material's id in
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
-from typing import Any
 
 import bpy
 import numpy as np
 
-from ..core import schema
+from ..core import material_folder, schema
+from ..core.folder_io import FormatError
 from ..core.maps import EnhancedMaterial, ParamMap
 from . import cycles_builder, uplift
 from .osl_env import prefer_blender_bundled_modules
 from .pbr_source import InputProblem
 
-PARAMS_FORMAT = 1  # the params.json format of torch_models' enhance command
 FOLDER_SUFFIX = "_richmat"
 
 
@@ -46,37 +44,15 @@ def claim_folder(root: Path, material: bpy.types.Material) -> Path:
         folder = (root / (stem if n == 1 else f"{stem}_{n}")).resolve()
         if folder.parent != root:
             raise InputProblem(f"material name {material.name!r} does not give a folder inside {root}")
-        record = folder / "params.json"
-        if not record.exists():
+        if not (folder / material_folder.RECORD).exists():
             return folder
         try:
-            owner = json.loads(record.read_text()).get("material_uid")
-        except (OSError, ValueError):
+            owner = material_folder.read(folder).record.get("material_uid")
+        except (OSError, FormatError):  # another program's folder, or one an older richmat baked
             owner = None
         if owner == material.richmat.uid:
             return folder
         n += 1
-
-
-def write_exr(path: Path, value: np.ndarray) -> None:
-    """An (H, W, C) map as a half-float ZIP EXR (top row first), written whole or not at all."""
-    prefer_blender_bundled_modules()
-    import OpenImageIO as oiio
-
-    h, w, c = value.shape
-    spec = oiio.ImageSpec(w, h, c, "half")
-    spec.channelnames = ("Y",) if c == 1 else ("R", "G", "B", "A")[:c]
-    spec.attribute("compression", "zip")
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.exr")
-    out = oiio.ImageOutput.create(str(tmp))
-    try:
-        if out is None or not out.open(str(tmp), spec) or \
-                not out.write_image(np.ascontiguousarray(value, np.float32)):
-            raise OSError(f"cannot write {path}: {oiio.geterror() or (out and out.geterror())}")
-        out.close()
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def edited_constants(enhanced: bpy.types.Material | None) -> dict[str, ParamMap]:
@@ -95,32 +71,11 @@ def edited_constants(enhanced: bpy.types.Material | None) -> dict[str, ParamMap]
     return edits
 
 
-def _plain(value: Any) -> Any:
-    return value.item() if isinstance(value, np.generic) else value
-
-
 def write_folder(folder: Path, mat: EnhancedMaterial, material: bpy.types.Material) -> dict[str, str]:
-    """EXRs, material.mtlx, then params.json (its presence marks a complete folder)."""
-    from ..core.mtlx import write_materialx  # imports MaterialX: Blender's bundled copy
-
-    folder.mkdir(parents=True, exist_ok=True)
-    textures, constants = {}, {}
-    for name, pmap in {"base_color": mat.base_color, **mat.params}.items():
-        file = folder / f"{name}.exr"
-        if pmap.is_constant:
-            values = [float(str(v)) for v in pmap.value]  # shortest float32 repr
-            constants[name] = values[0] if pmap.channels == 1 else values
-            file.unlink(missing_ok=True)
-        else:
-            write_exr(file, pmap.value)
-            textures[name] = file.name
-    write_materialx(mat, {k: str(folder / v) for k, v in textures.items()}, folder / "material.mtlx")
-    record = {"format": PARAMS_FORMAT, "material": material.name, "material_uid": material.richmat.uid,
-              "blend_file": bpy.data.filepath, "type": mat.type, "seed": mat.seed,
-              "constants": constants, "textures": textures,
-              "settings": {k: _plain(v) for k, v in mat.settings.items()}}
-    (folder / "params.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
-    return {k: str(folder / v) for k, v in textures.items()}
+    """The material's folder (``core.material_folder``), claimed by its id; returns the textures' paths."""
+    prefer_blender_bundled_modules()  # OpenImageIO and MaterialX: Blender's bundled copies
+    return material_folder.write(folder, mat, {"material": material.name, "material_uid": material.richmat.uid,
+                                               "blend_file": bpy.data.filepath})
 
 
 def bake(obj: bpy.types.Object, all_slots: bool, root: Path, relink: bool = True) -> list[str]:

@@ -11,6 +11,7 @@ from pathlib import Path
 import bpy
 
 from ..core.enhancement_types import DIELECTRIC_ONLY
+from ..core import material_folder
 from ..core.prompt import prompt_type
 from . import bake, mesh_maps, neural_assets, neural_backend, uplift
 from .cycles_builder import enable_osl
@@ -260,7 +261,7 @@ class RICHMAT_OT_fit_neural(_BackendOperator, bpy.types.Operator):
         if not _needs_enhanced(cls, context):
             return False
         enhanced = _enhanced(context)
-        if not enhanced.richmat.bake_dir or not (Path(enhanced.richmat.bake_dir) / "params.json").is_file():
+        if not enhanced.richmat.bake_dir or not (Path(enhanced.richmat.bake_dir) / material_folder.RECORD).is_file():
             cls.poll_message_set("Bake Parameters first: the fit reads the baked maps")
             return False
         return True

@@ -10,11 +10,12 @@ OSL runs on the CPU and OptiX only.
 from __future__ import annotations
 
 import hashlib
-import json
 from pathlib import Path
 
 import bpy
 
+from ..core import material_folder, neural_folder
+from ..core.folder_io import FormatError
 from ..core.neural_osl import neural_osl_source, read_safetensors
 from . import neural_assets, neural_backend, uplift
 from .cycles_builder import COLOR_SPACE_COLOR, COLOR_SPACE_DATA, compile_script_node, enable_osl
@@ -76,8 +77,8 @@ def _image(tree: bpy.types.NodeTree, name: str, file: Path, color: bool, row: in
     return node
 
 
-def add_neural_nodes(material: bpy.types.Material, text: bpy.types.Text, baked: Path, neural: Path,
-                     scene: bpy.types.Scene) -> bpy.types.Node:
+def add_neural_nodes(material: bpy.types.Material, text: bpy.types.Text, baked: material_folder.MaterialFolder,
+                     neural: neural_folder.NeuralFolder, scene: bpy.types.Scene) -> bpy.types.Node:
     """Script node, latent/base/energy textures or constants, and the output."""
     prefer_blender_bundled_modules()  # assigning the script runs Cycles' update, which imports oslquery
     tree = material.node_tree
@@ -89,23 +90,22 @@ def add_neural_nodes(material: bpy.types.Material, text: bpy.types.Text, baked: 
     output.target, output.location = "CYCLES", (400.0, 0.0)
     tree.links.new(script.outputs["BSDF"], output.inputs["Surface"])
 
-    record = json.loads((neural / "neural.json").read_text())
-    params = json.loads((baked / "params.json").read_text())
-    if "latent" in record:  # a constant material: one latent vector
-        script.inputs["latent_0"].default_value = record["latent"][:3]
-        script.inputs["latent_1"].default_value = record["latent"][3:]
+    if neural.latent is not None:  # a constant material: one latent vector
+        script.inputs["latent_0"].default_value = neural.latent[:3]
+        script.inputs["latent_1"].default_value = neural.latent[3:]
     else:
-        for k in range(2):
-            latent = _image(tree, f"latent_{k}", neural / f"latent_{k}.exr", False, k)
+        for k, file in enumerate(neural.latent_paths):
+            latent = _image(tree, f"latent_{k}", file, False, k)
             tree.links.new(latent.outputs["Color"], script.inputs[f"latent_{k}"])
-    if "base_color" in params["textures"]:
-        base = _image(tree, "base_color", baked / params["textures"]["base_color"], True, 2)
+    base_file = baked.texture_paths.get("base_color")
+    if base_file is not None:
+        base = _image(tree, "base_color", base_file, True, 2)
         tree.links.new(base.outputs["Color"], script.inputs["base_color"])
     else:
-        script.inputs["base_color"].default_value = (*params["constants"]["base_color"], 1.0)
-    scale = record.get("energy_scale", 1.0)
-    if isinstance(scale, str):
-        energy = _image(tree, "energy_scale", neural / scale, False, 3)
+        script.inputs["base_color"].default_value = (*baked.map("base_color").value.tolist(), 1.0)
+    scale = neural.energy_scale
+    if isinstance(scale, Path):
+        energy = _image(tree, "energy_scale", scale, False, 3)
         tree.links.new(energy.outputs["Color"], script.inputs["energy_scale"])
     else:
         script.inputs["energy_scale"].default_value = float(scale)
@@ -132,12 +132,15 @@ def preview(context: bpy.types.Context) -> list[str]:
     work = []
     for p in plans:
         enhanced = p.original.richmat.enhanced
-        neural = Path(enhanced.richmat.neural_dir)
-        record = json.loads((neural / "neural.json").read_text())
-        if record.get("decoder_sha256") != digest:
+        try:
+            neural = neural_folder.read(Path(enhanced.richmat.neural_dir))
+            baked = material_folder.read(Path(enhanced.richmat.bake_dir))
+        except FormatError as exc:
+            raise InputProblem(f"{p.original.name}: {exc}") from None
+        if neural.decoder_sha256 != digest:
             raise InputProblem(f"{p.original.name}: its latents were fitted against another decoder; "
                                "run Fit Neural Material again")
-        work.append((p, Path(enhanced.richmat.bake_dir), neural))
+        work.append((p, baked, neural))
     text = _shader_text(weights, digest)
     lines = []
     for p, baked, neural in work:

@@ -145,26 +145,19 @@ def use_baked_material(inp: MeshInput, folder: Path) -> None:
     The add-on bakes the material it previews; generating against that same base
     colour keeps the latents and the preview's diffuse base in agreement, and its
     metalness lets the prompt's type follow the enhancer's rule for metals."""
-    import json
+    from richmat_addon.core import material_folder
+    from richmat_addon.core.folder_io import FormatError
 
-    from ..neural.material_vectors import read_exr
-
-    params_file = folder / "params.json"
-    if not params_file.is_file():
-        raise ValueError(f"{folder}: not a baked material folder (no params.json)")
-    params = json.loads(params_file.read_text())
+    baked = material_folder.read(folder)
 
     def value(name: str) -> np.ndarray:
-        if name in params.get("textures", {}):
-            return read_exr(folder / params["textures"][name])
-        if name in params.get("constants", {}):
-            return np.asarray(params["constants"][name], np.float32).reshape(1, 1, -1)
-        raise ValueError(f"{folder}: params.json has no {name}; bake the material again")
+        pmap = baked.map(name)
+        return pmap.value.reshape(1, 1, -1) if pmap.is_constant else pmap.value
 
     inp.base_color = value("base_color")[..., :3]
     inp.metallic = float(value("metalness")[..., 0].mean()) > METALLIC_THRESHOLD
-    exponent = params.get("settings", {}).get("p")
+    exponent = baked.record["settings"].get("p")
     if exponent is None:
-        raise ValueError(f"{folder}: params.json has no settings.p (roughness exponent); bake the material again")
+        raise FormatError(f"{folder}: params.json has no settings.p (roughness exponent); bake the material again")
     roughness = value("alpha_core")[..., :1] ** (1.0 / exponent)  # enhance: alpha_core = roughness^p
     inp.roughness_metalness = stack_maps(roughness, value("metalness")[..., :1])

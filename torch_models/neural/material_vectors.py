@@ -8,16 +8,20 @@ constant material stays one vector.
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
 from torch import Tensor
 
-from richmat_addon.core.schema import CHANNEL_SLICES, PARAMS
+from richmat_addon.core import material_folder, neural_folder
+from richmat_addon.core.schema import PARAMS
 from .networks import normalise_params
+
+if TYPE_CHECKING:
+    from .energy import BoundedFit
 
 QUANT = 1.0 / 256.0
 
@@ -38,36 +42,22 @@ class MaterialVectors:
         return np.ascontiguousarray(values.reshape(*self.shape, -1).numpy())
 
 
-def read_exr(path: Path) -> np.ndarray:
-    import OpenImageIO as oiio
-
-    buf = oiio.ImageBuf(str(path))
-    if buf.has_error:
-        raise ValueError(f"{path}: cannot read ({buf.geterror().strip()})")
-    return np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)
-
-
 def read_vectors(folder: Path) -> MaterialVectors:
-    """Parameter vectors of a folder written by ``enhance`` (params.json + EXRs)."""
-    record_path = folder / "params.json"
-    if not record_path.is_file():
-        raise ValueError(f"{folder}: not an enhanced material folder (no params.json)")
-    record = json.loads(record_path.read_text())
-    maps = {name: read_exr(folder / file) for name, file in record.get("textures", {}).items()
-            if name in CHANNEL_SLICES}
-    shape = max((m.shape[:2] for m in maps.values()), default=None, key=lambda s: s[0] * s[1])
+    """Parameter vectors of an enhanced material folder (params.json + EXRs)."""
+    mf = material_folder.read(folder)
+    maps = {p.name: mf.map(p.name).value for p in PARAMS}
+    shape = max((m.shape[:2] for m in maps.values() if m.ndim == 3), default=None, key=lambda s: s[0] * s[1])
     columns = []
     for p in PARAMS:
-        if p.name in maps:
-            m = maps[p.name]
+        m = maps[p.name]
+        if m.ndim == 3:
             if m.shape[:2] != shape:  # nearest resampling to the largest map
                 rows = (np.arange(shape[0]) * m.shape[0] // shape[0])[:, None]
                 cols = (np.arange(shape[1]) * m.shape[1] // shape[1])[None, :]
                 m = m[rows, cols]
             columns.append(m.reshape(-1, p.channels))
         else:
-            value = np.atleast_1d(np.asarray(record["constants"][p.name], np.float32))
-            columns.append(np.broadcast_to(value, ((shape[0] * shape[1]) if shape else 1, p.channels)))
+            columns.append(np.broadcast_to(m, ((shape[0] * shape[1]) if shape else 1, p.channels)))
     vectors = np.nan_to_num(np.concatenate(columns, 1).astype(np.float32))
     exact, inverse = np.unique(vectors, axis=0, return_inverse=True)
     keys = np.round(normalise_params(torch.from_numpy(exact)).numpy() / QUANT).astype(np.int64)
@@ -77,3 +67,18 @@ def read_vectors(folder: Path) -> MaterialVectors:
     representatives /= np.bincount(merged_of_exact.ravel())[:, None]
     texel_rep = merged_of_exact.ravel()[inverse.ravel()] if shape else np.zeros(0, np.int64)
     return MaterialVectors(shape, representatives, texel_rep, len(exact))
+
+
+def write_fit(out: Path, mv: MaterialVectors, bounded: BoundedFit, decoder_sha256: str,
+              fields: dict[str, Any]) -> dict[str, Any]:
+    """Write a fit's neural folder: latents at the material's texels, the energy scale where the
+    furnace repaired, and the counts and furnace result beside ``fields``; returns its record."""
+    z, check = bounded.z, bounded.check
+    scale = check.energy_scale()
+    record = {"texels": int(len(mv.inverse)) if mv.shape else 1,
+              "exact_unique_vectors": mv.exact_unique, "fitted_vectors": len(mv.unique),
+              "cluster_bound": f"each texel within {QUANT / 2:g} of its representative per normalised parameter",
+              "furnace": dict(bounded.counts(), worst_albedo=float(check.albedo.max())), **fields}
+    if mv.shape is None:
+        return neural_folder.write(out, z[0].detach().numpy(), scale.detach().numpy(), decoder_sha256, record)
+    return neural_folder.write(out, mv.texels(z), mv.texels(scale), decoder_sha256, record)
