@@ -41,7 +41,7 @@ def test_source_embeds_every_weight_and_the_reader_needs_no_torch(untrained_mode
     assert np.allclose(tensors["decoder.net.8.weight"], model.decoder.net[8].weight.numpy())
     src = neural_osl_source(tensors)
     assert "shader richmat_neural" in src and "emission()" in src and "diffuse(n)" in src
-    assert ("#define DECODER_EXTRA , log_slope" in src) == (model.decoder.encoding == "half_log_slope")
+    assert ("#define NET_EXTRA , log_slope" in src) == (model.decoder.encoding == "half_log_slope")
     assert src.count("float W") == 5 + 3  # decoder and sampling decoder layers
     with pytest.raises(ValueError, match="layout"):
         neural_osl_source({k: v for k, v in tensors.items() if not k.startswith("decoder.net.8")})

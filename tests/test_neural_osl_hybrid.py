@@ -1,0 +1,53 @@
+"""The neural preview shader for the hybrid decoder kind: chosen by the weights' own tensor names,
+compiled by Cycles' OSL and in agreement with the torch renderer."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from richmat_addon.core.neural_osl import neural_osl_source, read_safetensors
+
+from .test_addon_preview import cycles_ball, torch_ball
+from .test_hybrid_decoder import tiny_hybrid  # noqa: F401  (module fixture: a 40-step hybrid run)
+
+LATENT = [0.3, -0.5, 0.2, 0.7, -0.1, 0.4]
+BASE = [0.5, 0.3, 0.2]
+
+
+def test_the_tensor_names_choose_the_hybrid_shader(tiny_hybrid: Path) -> None:  # noqa: F811
+    tensors = read_safetensors(tiny_hybrid / "weights.safetensors")
+    src = neural_osl_source(tensors)
+    # 3 lobes: the head maps [z, cos, sin, Schlick] to 5 K + 7 outputs, the gates [z, wi, wo, h, wi.h] to 3 (K + 1)
+    assert "void head_mlp(float x[9], output float y[22])" in src
+    assert "void gates_mlp(float x[16], output float y[12])" in src
+    assert "sampler_mlp" not in src and "decoder_mlp" not in src and src.count("float W") == 3 + 3
+    assert float(re.search(r"#define ALPHA_FLOOR (\S+)", src).group(1)) == pytest.approx(0.002)
+    assert "#define T_SLOT 19\n" in src  # slots: 3 GGX lobes, diffuse, T, absorbed after 4 K + 3 outputs
+    assert f"{float(tensors['decoder.head.4.weight'][0, 0]):.9g}" in src
+    with pytest.raises(ValueError, match="hybrid decoder layout"):
+        neural_osl_source({k: v for k, v in tensors.items() if not k.startswith("decoder.gates.4")})
+
+
+@pytest.mark.parametrize("samples", [0, 8], ids=["base", "base_and_lobe"])
+def test_cycles_preview_of_the_hybrid_agrees_with_the_torch_renderer(
+        tiny_hybrid: Path, blender_run, tmp_path: Path, samples: int) -> None:  # noqa: F811
+    """Same networks, latent, probe and ball. The base alone (no lobe directions) weights Cycles' diffuse
+    closure by T(wi): the ball's mean within 2 %. With the lobe's world-lit emission: within 4 %, in mean
+    and in median."""
+    from torch_models.neural.weights import load
+
+    model = load(tiny_hybrid)
+    ref = torch_ball(model, LATENT, BASE, 1.0 if samples else 0.0, 32, 256)
+    cycles = cycles_ball(blender_run, tiny_hybrid, LATENT, BASE, samples, 32, 128, tmp_path)
+    ball = (cycles[..., 3] > 0.99) & (ref.alpha > 0.99)
+    assert ball.sum() > 200 and np.isfinite(cycles).all()
+    c_mean, t_mean = cycles[..., :3][ball].mean(0), ref.rgb[ball].mean(0)
+    if samples == 0:
+        assert np.allclose(c_mean, t_mean, rtol=0.02), (c_mean, t_mean)
+    else:
+        c_med, t_med = np.median(cycles[..., :3][ball], 0), np.median(ref.rgb[ball], 0)
+        assert np.allclose(c_mean, t_mean, rtol=0.04), (c_mean, t_mean)
+        assert np.allclose(c_med, t_med, rtol=0.04), (c_med, t_med)
