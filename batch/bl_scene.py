@@ -15,6 +15,8 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
+from richmat_addon.core.gltf_materials import GltfError, external_files
+
 
 class BadAsset(Exception):
     """The asset cannot be rendered; the message is the ledger's reason."""
@@ -53,7 +55,11 @@ def import_asset(path: Path) -> dict[str, Any]:
     if importer is None:
         raise BadAsset(f"unsupported format {path.suffix!r}")
     try:
+        if path.suffix.lower() in (".gltf", ".glb"):  # Blender's importer reads URIs unchecked
+            external_files(path)
         importer(path)
+    except GltfError as exc:
+        raise BadAsset(f"import failed: {exc.problem}") from None
     except (RuntimeError, OSError, ValueError, KeyError, IndexError, TypeError, AttributeError) as exc:
         message = str(exc).strip().splitlines()
         raise BadAsset(f"import failed: {message[-1] if message else type(exc).__name__}") from None

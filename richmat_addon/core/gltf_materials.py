@@ -23,10 +23,12 @@ from __future__ import annotations
 
 import base64
 import json
+import os
+import stat
 import struct
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePosixPath, PureWindowsPath
 from typing import Any, Callable, ContextManager, Iterator
 from urllib.parse import unquote
 
@@ -45,6 +47,9 @@ _CHUNK_BIN = 0x004E4942
 # integers, and KHR_materials_* only add lobes on top of metal-rough.
 _UNDERSTOOD_REQUIRED = frozenset({"KHR_texture_transform", "KHR_mesh_quantization"})
 _NOT_METAL_ROUGH = frozenset({"KHR_materials_pbrSpecularGlossiness"})
+# The largest external buffer or image read by URI: far above any real texture or
+# mesh buffer, and a bound on what a crafted file can make a reader load.
+MAX_URI_BYTES = 1 << 31
 
 
 class GltfError(ValueError):
@@ -109,18 +114,35 @@ class GltfDocument:
 def load_gltf(path: str | Path) -> GltfDocument:
     """Parse a .glb or .gltf file and load its buffers (GLB chunk, data: URIs, files)."""
     path = Path(path)
+    doc_json, bin_chunk = _parse_file(path)
+    with checked(path):
+        _check_asset(path, doc_json)
+        buffers = [_load_buffer(path, i, b, bin_chunk) for i, b in enumerate(doc_json.get("buffers", []))]
+    return GltfDocument(path, doc_json, buffers)
+
+
+def external_files(path: str | Path) -> list[Path]:
+    """Every external file a .gltf/.glb refers to by URI, each checked by ``resolve_uri``.
+
+    For importers that resolve URIs themselves (Blender's): calling this first holds
+    them to the same rules as this reader."""
+    path = Path(path)
+    doc_json, _ = _parse_file(path)
+    with checked(path):
+        return [resolve_uri(path, item["uri"], f"{kind}[{i}]")
+                for kind in ("buffers", "images") for i, item in enumerate(doc_json.get(kind, []))
+                if "uri" in item and not item["uri"].startswith("data:")]
+
+
+def _parse_file(path: Path) -> tuple[dict[str, Any], bytes | None]:
+    """The JSON of a .gltf or .glb, and the GLB binary chunk if there is one."""
     try:
         raw = path.read_bytes()
     except OSError as exc:
         raise GltfError(path, f"cannot read the file ({exc.strerror or exc})") from None
     if raw[:4] == _GLB_MAGIC:
-        doc_json, bin_chunk = _parse_glb(path, raw)
-    else:
-        doc_json, bin_chunk = _parse_json(path, raw), None
-    with checked(path):
-        _check_asset(path, doc_json)
-        buffers = [_load_buffer(path, i, b, bin_chunk) for i, b in enumerate(doc_json.get("buffers", []))]
-    return GltfDocument(path, doc_json, buffers)
+        return _parse_glb(path, raw)
+    return _parse_json(path, raw), None
 
 
 def _parse_json(path: Path, raw: bytes) -> dict[str, Any]:
@@ -170,8 +192,42 @@ def _check_asset(path: Path, doc: dict[str, Any]) -> None:
         raise GltfError(path, f"requires unsupported extension(s): {', '.join(unsupported)}")
 
 
-def _read_uri(path: Path, uri: str, what: str) -> bytes:
-    """Bytes of a data: URI or of a file next to the .gltf."""
+def resolve_uri(path: Path, uri: str, what: str) -> Path:
+    """The file an external URI of the glTF at ``path`` names, if the file may be read.
+
+    A glTF is untrusted input: its URIs may only name regular files of at most
+    ``MAX_URI_BYTES`` inside the asset's folder. Absolute paths, other schemes,
+    ``..`` or symlinks leading out of the folder, devices and fifos are refused, so
+    a crafted file can neither read other local files nor hang on /dev/zero."""
+    name = unquote(uri)
+    if (PurePosixPath(name).is_absolute() or PureWindowsPath(name).drive or PureWindowsPath(name).root
+            or ":" in name.split("/")[0]):
+        raise _refused(path, uri, what, "only relative paths inside the asset's folder are read")
+    folder = path.parent.resolve()
+    target = (folder / name).resolve()
+    if not target.is_relative_to(folder):
+        raise _refused(path, uri, what, f"it leads out of the asset's folder {folder} (to {target})")
+    try:
+        info = target.stat()
+    except OSError:
+        raise GltfError(path, f"{what} refers to external file {uri!r}, which is missing "
+                              f"(looked for {target})") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise _refused(path, uri, what, f"{target} is not a regular file")
+    if info.st_size > MAX_URI_BYTES:
+        raise _refused(path, uri, what, f"{target} has {info.st_size} bytes, over the {MAX_URI_BYTES} byte cap")
+    return target
+
+
+def _refused(path: Path, uri: str, what: str, why: str) -> GltfError:
+    return GltfError(path, f"{what} refers to {uri!r}, which is refused: {why}")
+
+
+def read_uri(path: Path, uri: str, what: str) -> bytes:
+    """Bytes of a data: URI, or of the file ``resolve_uri`` allows.
+
+    The file is opened without following a final symlink or blocking on a fifo and
+    checked again once open, so a swap after ``resolve_uri`` reads nothing either."""
     if uri.startswith("data:"):
         header, _, payload = uri.partition(",")
         if not header.endswith(";base64"):
@@ -180,18 +236,25 @@ def _read_uri(path: Path, uri: str, what: str) -> bytes:
             return base64.b64decode(payload, validate=True)
         except ValueError:
             raise GltfError(path, f"{what} has a corrupt base64 data: URI") from None
-    target = path.parent / unquote(uri)
+    target = resolve_uri(path, uri, what)
+    flags = os.O_RDONLY | getattr(os, "O_BINARY", 0) | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
     try:
-        return target.read_bytes()
-    except OSError:
-        raise GltfError(path, f"{what} refers to external file {uri!r}, which is missing "
-                              f"(looked for {target})") from None
+        fd = os.open(target, flags)
+    except OSError as exc:
+        raise GltfError(path, f"{what}: cannot open {uri!r} ({exc.strerror or exc})") from None
+    with os.fdopen(fd, "rb") as f:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise _refused(path, uri, what, f"{target} is not a regular file")
+        data = f.read(MAX_URI_BYTES + 1)
+    if len(data) > MAX_URI_BYTES:
+        raise _refused(path, uri, what, f"{target} grew over the {MAX_URI_BYTES} byte cap")
+    return data
 
 
 def _load_buffer(path: Path, index: int, buf: dict[str, Any], bin_chunk: bytes | None) -> bytes:
     what = f"buffers[{index}]"
     if "uri" in buf:
-        data = _read_uri(path, buf["uri"], what)
+        data = read_uri(path, buf["uri"], what)
     elif index == 0 and bin_chunk is not None:
         data = bin_chunk
     else:
@@ -323,7 +386,7 @@ class _Images:
         if "bufferView" in image:
             data = bytes(doc.buffer_view(image["bufferView"], what))
         elif "uri" in image:
-            data = _read_uri(doc.path, image["uri"], what)
+            data = read_uri(doc.path, image["uri"], what)
         else:
             raise doc.error(f"{what} has neither a bufferView nor a URI")
         mime = _sniff_mime(data)

@@ -12,13 +12,14 @@ them (OBJ, PLY) leave them unknown, which the generator was trained to handle.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from richmat_addon.core.enhance import METALLIC_THRESHOLD, is_metallic
-from richmat_addon.core.gltf_materials import srgb_to_linear
+from richmat_addon.core.gltf_materials import read_uri, srgb_to_linear
 from richmat_addon.core.maps import PbrInputs
 
 from .views import Mesh
@@ -96,11 +97,29 @@ def _base_colour(part) -> tuple[np.ndarray, np.ndarray | None]:  # part: trimesh
     return factor, texture
 
 
+class _MeshFolder(Mapping[str, bytes]):
+    """trimesh's resolver for the files a mesh refers to (glTF buffers and images, OBJ
+    materials and textures): each is read by ``read_uri``, so a crafted file reads
+    nothing outside its folder and nothing over the size cap."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def __getitem__(self, name: str) -> bytes:
+        return read_uri(self.path, name, "the mesh file")
+
+    def __iter__(self) -> Iterator[str]:  # the folder is not listed: only named files are read
+        return iter(())
+
+    def __len__(self) -> int:
+        return 0
+
+
 def load_mesh(path: Path) -> MeshInput:
     import trimesh
     import xatlas
 
-    scene = trimesh.load(str(path), force="scene")
+    scene = trimesh.load(str(path), force="scene", resolver=_MeshFolder(Path(path)))
     parts = [g for g in scene.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
     if not parts:
         raise ValueError(f"{path}: no triangles")
