@@ -103,6 +103,23 @@ def test_bad_input_exit_code_2(tmp_path: Path) -> None:
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
 
 
+@pytest.mark.parametrize("name", ["../../escape", "..", "sub/dir"])
+def test_output_folder_guard_survives_python_O(tmp_path: Path, name: str) -> None:
+    """Were safe_name ever to let a path through, enhance must refuse it, under ``python -O`` too."""
+    (tmp_path / "in").mkdir()
+    glb = write_test_glb(tmp_path / "in" / "cube.glb", (name,))
+    out = tmp_path / "in" / "out"
+    code = ("import sys; from richmat_addon.core import material_folder; "
+            "material_folder.safe_name = lambda name, taken, **kw: name; "
+            "from torch_models.cli import main; sys.exit(main(sys.argv[1:]))")
+    proc = subprocess.run([sys.executable, "-O", "-c", code, "enhance", str(glb), "--type", "0", "--out", str(out)],
+                          cwd=REPO, env=dict(os.environ, PYTHONPATH=str(REPO)), capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert f"material {name!r} would be written to" in proc.stderr and "outside the output folder" in proc.stderr
+    assert sorted(p.name for p in tmp_path.rglob("*")) == ["cube.glb", "in", "out"]
+
+
 def test_missing_file_exit_code_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["enhance", str(tmp_path / "nope.glb"), "--out", str(tmp_path / "out")]) == 2
     assert "nope.glb: no such file" in capsys.readouterr().err

@@ -106,7 +106,9 @@ def run(args: argparse.Namespace) -> int:
     taken: set[str] = set()
     for material, type_, note in tqdm(plan, desc=asset.name, unit="material", disable=None):
         folder = root / material_folder.safe_name(material.pbr.name, taken)
-        assert folder.parent == root, folder  # safe_name guarantees one plain component
+        if folder.resolve().parent != root:  # safe_name makes one plain component; `python -O` drops asserts
+            raise InputError(f"{asset}: material {material.pbr.name!r} would be written to {folder}, "
+                             f"outside the output folder {root}")
         record: dict[str, Any] = {"asset": asset.name, "material": material.pbr.name,
                                   "material_index": material.index, "requested_type": requested,
                                   "type_note": note, "alpha_mode": material.alpha_mode,
