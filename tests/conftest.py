@@ -60,5 +60,5 @@ def blender_run(tmp_path: Path) -> Callable[..., Any]:
 @pytest.fixture
 def shared_assets() -> Path:
     if not SHARED_ASSETS.is_dir():
-        pytest.skip("../shared/assets is not beside this clone")
+        pytest.skip("the external sample assets (../shared/assets, not shipped with the repo) are not beside this clone")
     return SHARED_ASSETS

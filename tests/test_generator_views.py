@@ -5,9 +5,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+import trimesh
 from scipy.ndimage import binary_erosion
 
 from torch_models.generator import corpus, views
+from tests.test_generator_text import text_encoder
 from richmat_addon.core.folder_io import read_exr
 
 torch.set_num_threads(1)
@@ -17,7 +19,6 @@ ASSET = DATA / "cone_metal_2"
 
 def _glb_mesh() -> views.Mesh:
     """The GLB as Blender imports it: glTF Y up -> Blender Z up, (x, y, z) -> (x, -z, y)."""
-    trimesh = pytest.importorskip("trimesh")
     geom = list(trimesh.load(DATA / "cone_metal_2.glb").geometry.values())[0]
 
     def z_up(a):
@@ -31,10 +32,8 @@ def _glb_mesh() -> views.Mesh:
 
 @pytest.fixture(scope="module")
 def both():
-    try:
+    with text_encoder():
         batch = corpus.from_batch(ASSET)
-    except FileNotFoundError as exc:
-        pytest.skip(str(exc))
     cams = views.Cameras.from_record(json.loads((ASSET / "cameras.json").read_text()))
     m = ASSET / "materials" / "metal"
     latents = np.concatenate([read_exr(m / "neural" / "latent_0.exr"), read_exr(m / "neural" / "latent_1.exr")], -1)
