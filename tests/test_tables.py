@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import math
-import time
 from typing import Iterator
 
 import pytest
@@ -135,11 +134,24 @@ def test_fresnel_moments_reproduce_e() -> None:
     assert torch.allclose(moments.sum(0), tables.table("ggx_E", torch.device("cpu"), F64), atol=1e-9)
 
 
-def test_generation_is_deterministic_and_fast() -> None:
-    start = time.perf_counter()
+# VNDF samples that generating every table evaluates: the rules (QUADRATURE 24, S_QUADRATURE 32)
+# the module docstring times at 0.9 s on 2 cores, paid once per process at first use.
+VNDF_SAMPLE_BUDGET = 4_063_232
+
+
+def test_generation_is_deterministic_and_cheap(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Cost in quadrature samples, not seconds: a busy machine's seconds measure its neighbours."""
+    samples: list[int] = []
+    quadrature = tables.vndf_quadrature
+
+    def counting(rough: torch.Tensor, mu: torch.Tensor, n: int = tables.QUADRATURE):
+        weight, c, rule = quadrature(rough, mu, n)
+        samples.append(rule.numel())
+        return weight, c, rule
+
+    monkeypatch.setattr(tables, "vndf_quadrature", counting)
     first = {name: gen() for name, gen in tables._GENERATORS.items()}
-    elapsed = time.perf_counter() - start
+    assert 0 < sum(samples) <= VNDF_SAMPLE_BUDGET, f"{sum(samples)} VNDF samples for all tables"
     for name, gen in tables._GENERATORS.items():
         assert torch.equal(first[name], gen()), name
         assert torch.isfinite(first[name]).all(), name
-    assert elapsed < 6.0, f"table generation took {elapsed:.2f} s on one thread"
