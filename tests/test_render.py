@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 
+from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.preview import PreviewScene
 from richmat_addon.core.schema import default_vector
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
@@ -26,12 +27,6 @@ PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
 @pytest.fixture(scope="module")
 def env() -> EnvMap:
     return EnvMap.load(PROBE)
-
-
-def _read_exr(path: Path) -> np.ndarray:
-    import OpenImageIO as oiio
-
-    return oiio.ImageBuf(str(path)).get_pixels(oiio.FLOAT)[..., :3]
 
 
 def _plain_bsdf(base=(0.5, 0.2, 0.1), **overrides: float) -> LayeredBsdf:
@@ -119,7 +114,7 @@ def test_camera_and_probe_conventions_match_cycles(blender_run, tmp_path: Path, 
                             None, samples=32, with_ball=False)
         preview_scene.render_exr(scene, Path({str(tmp_path / 'bg.exr')!r}))
     """)
-    cycles = _read_exr(tmp_path / "bg.exr")
+    cycles = read_exr(tmp_path / "bg.exr")[..., :3]
     rotated = EnvMap(env.rgb.numpy(), rotation_deg=30.0)
     scene = PreviewScene(resolution=48)
     gen = torch.Generator().manual_seed(0)
@@ -185,7 +180,7 @@ def test_ball_agrees_with_cycles(blender_run, tmp_path: Path, env: EnvMap) -> No
     params = {k: torch.tensor([v]) for k, v in case.params.items()}
     bsdf = LayeredBsdf(params, torch.tensor([case.base_color]))
     ours = render_ball(lambda n: bsdf, env, PreviewScene(resolution=48), 128, 0)
-    cycles = _read_exr(tmp_path / "ball.exr")
+    cycles = read_exr(tmp_path / "ball.exr")[..., :3]
     assert math.isclose(float(cycles.mean()), float(ours.rgb.mean()), rel_tol=0.03)
     assert mean_flip(agx(cycles), agx(ours.rgb)) < 0.06
 
