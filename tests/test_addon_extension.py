@@ -164,9 +164,7 @@ original = obj.active_material
 before = render(64, 16)
 scene.richmat.enhancement_type = "2"
 scene.richmat.seed = 3
-t = time.process_time()  # CPU time: wall time on a loaded machine measures the neighbours
 res, err = run_op("uplift_material")
-uplift_s = time.process_time() - t
 assert res == {{"FINISHED"}}, err
 enhanced = obj.active_material
 enhanced_name = enhanced.name
@@ -201,7 +199,7 @@ assert panels.RICHMAT_PT_view3d.bl_category == panels.RICHMAT_PT_shader_editor.b
 assert (panels.RICHMAT_PT_view3d.bl_space_type, panels.RICHMAT_PT_shader_editor.bl_space_type) == \
     ("VIEW_3D", "NODE_EDITOR")
 print("RESULT " + json.dumps(dict(
-    uplift_s=uplift_s, nodes=sorted(nodes), links=links, engine=engine,
+    nodes=sorted(nodes), links=links, engine=engine,
     before=[float(before.mean()), float(before.max())], after=[float(after.mean()), float(after.max())],
     finite=bool(np.isfinite(after).all()), n_materials=n_materials, again=again,
     original_name=original.name, enhanced_name=enhanced_name, original_nodes=len(original.node_tree.nodes),
@@ -220,7 +218,6 @@ print("RESULT " + json.dumps(dict(
     assert result["finite"]
     # Type 2 adds a sharp clearcoat highlight of the point light on a rough paint.
     assert result["after"][1] > 2 * result["before"][1], (result["before"], result["after"])
-    assert result["uplift_s"] < 2.0
     assert {"params.json", "material.mtlx", "base_color.exr", "alpha_core.exr"} <= set(result["files"])
     params = result["params"]
     assert params["type"] == 2 and params["seed"] == 3
