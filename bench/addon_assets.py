@@ -11,7 +11,7 @@ changes nothing visible and has no render.
 
     python bench/addon_assets.py [--assets WaterBottle ...] [--steps 100] [--size 192] [--samples 16]
         [--texture-size 256]
-        [--out docs/addon_assets.json] [--sheet-asset WaterBottle] [--sheet docs/addon_steps.png]
+        [--out docs/reports/addon_assets.json] [--sheet-asset WaterBottle] [--sheet docs/reports/addon_steps.png]
 
 The asset's images are scaled down to ``--texture-size`` texels first (default
 256; 0 keeps them): Bake writes maps at the input textures' resolution and the
@@ -256,9 +256,9 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=16, help="Cycles samples per pixel of the renders")
     parser.add_argument("--texture-size", type=int, default=256,
                         help="scale the asset's images down to this many texels at most (0: as stored)")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "addon_assets.json")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "addon_assets.json")
     parser.add_argument("--sheet-asset", default="WaterBottle")
-    parser.add_argument("--sheet", type=Path, default=REPO / "docs" / "addon_steps.png")
+    parser.add_argument("--sheet", type=Path, default=REPO / "docs" / "reports" / "addon_steps.png")
     parser.add_argument("--merge", action="store_true", help="keep the other assets of an existing report")
     args = parser.parse_args()
 

@@ -116,7 +116,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="fewer cases and samples (< 10 min)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the drawn materials (default: 0)")
     parser.add_argument("--out", type=Path, default=None,
-                        help="report JSON (default: docs/agreement[_quick].json); chart and sheet beside it")
+                        help="report JSON (default: docs/reports/agreement[_quick].json); chart and sheet beside it")
     parser.add_argument("--probe", type=Path, default=DEFAULT_PROBE, help="equirectangular HDR probe")
     parser.add_argument("--cycles-dir", type=Path, default=None, metavar="DIR",
                         help="keep the Cycles renders in DIR; if DIR already holds a finished run of the same "
@@ -126,7 +126,7 @@ def main() -> None:
 
     mode = "quick" if args.quick else "full"
     per_type, per_lobe, resolution, samples, spp, target = SETTINGS[mode]
-    out = args.out or REPO / "docs" / f"agreement{'_quick' if args.quick else ''}.json"
+    out = args.out or REPO / "docs" / "reports" / f"agreement{'_quick' if args.quick else ''}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
     all_cases = cases(args.seed, per_type, per_lobe)
     env = EnvMap(read_probe(args.probe))

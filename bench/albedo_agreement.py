@@ -54,7 +54,7 @@ def main() -> None:
     parser.add_argument("--per-type", type=int, default=10)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--steps", type=int, default=400, help="fit steps, as fit_flip")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "albedo_agreement.json")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "albedo_agreement.json")
     parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
     args = parser.parse_args()
 

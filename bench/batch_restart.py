@@ -13,7 +13,7 @@ every JSON equal once its timings (and the manifest's file hashes) are left out,
 the MP4 equal byte for byte but for its creation-date tag, every other file equal
 byte for byte; only ``logs/`` (the processes' own output) is not compared.
 
-    python bench/batch_restart.py [--work DIR] [--kill-after 300] [--out docs/batch_restart.json]
+    python bench/batch_restart.py [--work DIR] [--kill-after 300] [--out docs/reports/batch_restart.json]
         [--resolution 64 --frames 4 --samples 16 --fit-steps 5 --max-texture 16]
 """
 from __future__ import annotations
@@ -146,7 +146,7 @@ def main() -> None:
     parser.add_argument("--work", type=Path, default=Path("/tmp/richmat_batch_restart"),
                         help="scratch folder (inputs, run_a, run_b); wiped first")
     parser.add_argument("--kill-after", type=float, default=300.0, help="seconds before run B is SIGKILLed")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "batch_restart.json")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "batch_restart.json")
     parser.add_argument("--resolution", type=int, default=64)
     parser.add_argument("--frames", type=int, default=4)
     parser.add_argument("--samples", type=int, default=16)

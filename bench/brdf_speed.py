@@ -5,7 +5,7 @@ weights means Type 0 evaluates 2 lobes, Type 5 six). Each timing is the median
 of several repeats; types are timed interleaved in one run so ratios compare
 like with like on a shared machine.
 
-    python bench/brdf_speed.py [--out docs/brdf_speed.json] [--repeats 5]
+    python bench/brdf_speed.py [--out docs/reports/brdf_speed.json] [--repeats 5]
 """
 from __future__ import annotations
 
@@ -56,7 +56,7 @@ def time_eval(bsdf: LayeredBsdf, n: int, gen: torch.Generator, budget: float = 0
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("docs/brdf_speed.json"))
+    parser.add_argument("--out", type=Path, default=Path("docs/reports/brdf_speed.json"))
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
     torch.manual_seed(0)

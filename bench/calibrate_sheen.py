@@ -10,7 +10,7 @@ table (initialised from the fits) to those values in log space with Adam.
 
     python bench/calibrate_sheen.py [--out torch_models/brdf/data/sheen_ltc.npy]
 
-Writes the table and docs/sheen_calibration.json (the fit's residual before and
+Writes the table and docs/reports/sheen_calibration.json (the fit's residual before and
 after, per roughness). Takes ~5 minutes on 2 cores.
 """
 from __future__ import annotations
@@ -142,7 +142,7 @@ def fit(start: torch.Tensor, loss_of) -> torch.Tensor:  # type: ignore[no-untype
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=REPO / "torch_models" / "brdf" / "data" / "sheen_ltc.npy")
-    parser.add_argument("--report", type=Path, default=REPO / "docs" / "sheen_calibration.json")
+    parser.add_argument("--report", type=Path, default=REPO / "docs" / "reports" / "sheen_calibration.json")
     parser.add_argument("--measurements", type=Path, default=None,
                         help="keep the Cycles measurement in this folder, or reuse the one already there")
     args = parser.parse_args()

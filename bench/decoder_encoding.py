@@ -54,7 +54,7 @@ def main() -> None:
     parser.add_argument("--per-type", type=int, default=10)
     parser.add_argument("--fit-steps", type=int, default=400)
     parser.add_argument("--seed", type=int, default=3)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "decoder_encoding.json")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "decoder_encoding.json")
     args = parser.parse_args()
 
     drawn = cases(args.seed, args.per_type, 0)

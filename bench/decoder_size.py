@@ -52,7 +52,7 @@ def main() -> None:
     parser.add_argument("--per-type", type=int, default=2)
     parser.add_argument("--fit-steps", type=int, default=300)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "decoder_size.json")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "decoder_size.json")
     args = parser.parse_args()
 
     drawn = cases(args.seed + 11, args.per_type, 0)

@@ -86,7 +86,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--assets", type=Path, default=REPO.parent / "shared" / "assets" / "models")
     parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "dedupe.json")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "dedupe.json")
     args = parser.parse_args()
     if not args.assets.is_dir():
         raise SystemExit(f"{args.assets}: no sample assets here")

@@ -40,7 +40,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--per-type", type=int, default=50)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "fit_flip.json")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "fit_flip.json")
     parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
     parser.add_argument("--steps", type=int, default=400, help="fit steps (all materials fitted together)")
     parser.add_argument("--resolution", type=int, default=128)

@@ -18,7 +18,7 @@ ways and rendered on the preview ball (analytic vs neural, mean FLIP):
 If no variant moves the worst cases towards the targets, the decoder cannot
 represent those materials and a better decoder is the only fix.
 
-    python bench/fit_limits.py [--report docs/fit_flip.json] [--metals 8] [--dielectrics 4] [--out FILE.json]
+    python bench/fit_limits.py [--report docs/reports/fit_flip.json] [--metals 8] [--dielectrics 4] [--out FILE.json]
 """
 from __future__ import annotations
 
@@ -102,12 +102,12 @@ def best_of_random_starts(model: weights.NeuralModel, vectors: np.ndarray, steps
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--report", type=Path, default=REPO / "docs" / "fit_flip.json")
+    parser.add_argument("--report", type=Path, default=REPO / "docs" / "reports" / "fit_flip.json")
     parser.add_argument("--metals", type=int, default=8)
     parser.add_argument("--dielectrics", type=int, default=4)
     parser.add_argument("--resolution", type=int, default=96)
     parser.add_argument("--spp", type=int, default=32)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "fit_limits.json")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "fit_limits.json")
     args = parser.parse_args()
     torch.set_num_threads(1)
 

@@ -83,7 +83,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats per variant (median)")
     parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "fit_speed.json")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "fit_speed.json")
     args = parser.parse_args()
 
     model = weights.load(args.weights)

@@ -20,7 +20,7 @@ fresh furnace estimate; the share before the guard is reported beside it. The
 generated material is rendered with the scale map, as the add-on's preview does. CLIP-FID, CMMD and LPIPS need weights that
 cannot be downloaded here; they are skipped (noted in the output).
 
-Writes docs/generate_eval[_seedS].json and .png (PSNR and FLIP per method); the
+Writes docs/reports/generate_eval[_seedS].json and .png (PSNR and FLIP per method); the
 gallery of generated materials is bench/generate_gallery.py.
 
     .venv/bin/python bench/generate_eval.py [--seed S] [--checkpoint DIR] [--objects N]
@@ -199,11 +199,11 @@ def main() -> int:
     ap.add_argument("--guidance", type=float, default=2.0)
     ap.add_argument("--resolution", type=int, default=64, help="evaluation render size")
     ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--out", type=Path, default=None, help="report JSON (default: docs/generate_eval[_seedS].json)")
+    ap.add_argument("--out", type=Path, default=None, help="report JSON (default: docs/reports/generate_eval[_seedS].json)")
     args = ap.parse_args()
     torch.set_num_threads(1)
     name = "generate_eval.json" if args.seed == 0 else f"generate_eval_seed{args.seed}.json"
-    out = args.out or REPO / "docs" / name
+    out = args.out or REPO / "docs" / "reports" / name
     model, cfg = gen.load_generator(args.checkpoint)
     objects = [held_out(i, cfg) for i in held_out_indices(args.objects, cfg.corpus.seed)]
     retrieval = Retrieval(cfg.corpus)

@@ -111,7 +111,7 @@ def main() -> int:
     ap.add_argument("--checkpoint", type=Path, default=gen.SHIPPED)
     ap.add_argument("--objects", type=int, default=2)
     ap.add_argument("--steps", type=int, default=DEFAULT_STEPS)
-    ap.add_argument("--out", type=Path, default=REPO / "docs" / "generate_failures.json")
+    ap.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "generate_failures.json")
     args = ap.parse_args()
     torch.set_num_threads(1)
     model, cfg = gen.load_generator(args.checkpoint)

@@ -1,4 +1,4 @@
-"""Gallery of generated materials (issue 6, the paper's Fig. 8): docs/generate_gallery.png.
+"""Gallery of generated materials (issue 6, the paper's Fig. 8): docs/reports/generate_gallery.png.
 
 Rows: held-out objects (as bench/generate_eval.py picks them). Columns: the PBR
 input, the reference, the generation from the object's own caption, then the same
@@ -71,7 +71,7 @@ def main() -> int:
     ap.add_argument("--objects", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0, help="sampling seed")
     ap.add_argument("--checkpoint", type=Path, default=gen.SHIPPED)
-    ap.add_argument("--out", type=Path, default=REPO / "docs" / "generate_gallery.png")
+    ap.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "generate_gallery.png")
     args = ap.parse_args()
     torch.set_num_threads(1)
     model, cfg = gen.load_generator(args.checkpoint)

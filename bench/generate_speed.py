@@ -66,7 +66,7 @@ def main() -> int:
     ap.add_argument("--eval-views", type=int, default=16)
     ap.add_argument("--resolution", type=int, default=64)
     ap.add_argument("--spp", type=int, default=8)
-    ap.add_argument("--out", type=Path, default=REPO / "docs" / "generate_speed.json")
+    ap.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "generate_speed.json")
     args = ap.parse_args()
     torch.set_num_threads(1)
     model, cfg = gen.load_generator(args.checkpoint)

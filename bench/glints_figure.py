@@ -8,7 +8,7 @@ bottom row zooms into the highlight.
 
     python bench/glints_figure.py [--weights RUN] [--resolution 256] [--spp 64]
 
-Writes docs/glints.png.
+Writes docs/reports/glints.png.
 """
 from __future__ import annotations
 
@@ -50,7 +50,7 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=64)
     parser.add_argument("--scale", type=float, default=20.0, help="glint cells per unit length (ball radius 1)")
     parser.add_argument("--strength", type=float, default=0.7)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "glints.png")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "glints.png")
     args = parser.parse_args()
 
     model = weights.load(args.weights)

@@ -47,7 +47,7 @@ def main() -> None:
     parser.add_argument("--per-type", type=int, default=4, help="fitted materials per type in set (b) (default: 4)")
     parser.add_argument("--steps", type=int, default=400, help="fit steps for set (b)")
     parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "latent_robustness.json")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "latent_robustness.json")
     args = parser.parse_args()
 
     start = time.perf_counter()

@@ -1,6 +1,6 @@
 """Render every procedural mask, tiled 2x2 to show that the seams vanish.
 
-    python bench/mask_gallery.py [--out docs/mask_gallery.png] [--size 256] [--seed 0]
+    python bench/mask_gallery.py [--out docs/reports/mask_gallery.png] [--size 256] [--seed 0]
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from richmat_addon.core import masks  # noqa: E402
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("docs/mask_gallery.png"))
+    parser.add_argument("--out", type=Path, default=Path("docs/reports/mask_gallery.png"))
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()

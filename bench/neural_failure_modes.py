@@ -152,7 +152,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--quick", action="store_true", help="fewer points, smaller and noisier balls (< 2 min)")
     parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "neural_failure_modes.json")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "neural_failure_modes.json")
     parser.add_argument("--steps", type=int, help="fit steps (all sweep points fitted together)")
     args = parser.parse_args()
     # Full: 200 x 4096 samples give each of the 27 points ~30 k, more than fit_flip.py gives each of its 300.

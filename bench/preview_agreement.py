@@ -151,7 +151,7 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=1024, help="torch renderer samples per pixel")
     parser.add_argument("--cycles-spp", type=int, default=384)
     parser.add_argument("--directions", type=int, default=8, help="shader directions per shading point")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "preview_agreement.json")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "preview_agreement.json")
     args = parser.parse_args()
     folders = args.weights or [weights.SHIPPED]
 

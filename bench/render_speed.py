@@ -16,7 +16,7 @@
 The fit and prepare stages are run once per asset beforehand and are not timed:
 they are the same for both sides. Costs on 2 shared CPU cores forced small
 settings (defaults: 128 x 128, 4 frames, 2 assets); the report says which.
-Writes docs/render_speed.json and docs/render_speed.png.
+Writes docs/reports/render_speed.json and docs/reports/render_speed.png.
 
     .venv/bin/python bench/render_speed.py [--assets A.glb B.glb] [--resolution 128] [--frames 4]
 """
@@ -60,7 +60,7 @@ def parse(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--probe", type=Path, default=DEFAULT_PROBE)
     p.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     p.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "richmat_render_speed")
-    p.add_argument("--out", type=Path, default=REPO / "docs" / "render_speed.json")
+    p.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "render_speed.json")
     return p.parse_args(argv)
 
 

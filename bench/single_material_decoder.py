@@ -1,7 +1,7 @@
 """Can the decoder's network represent the materials the universal decoder fails on?
 
 The worst materials of a Table 1 run (by default the six worst of
-docs/fit_flip_seed3.json) each get decoders of the shipped size trained on that one
+docs/reports/fit_flip_seed3.json) each get decoders of the shipped size trained on that one
 material alone, one per direction encoding (encoder, decoder and sampling decoder
 from scratch, the shipped loss with the albedo term), then fitted and rendered as
 bench/fit_flip.py does. The shipped universal decoder is fitted and rendered beside
@@ -33,7 +33,7 @@ from torch_models.neural.networks import DIRECTION_ENCODINGS  # noqa: E402
 from torch_models.neural.train import TrainConfig, Trainer  # noqa: E402
 
 CPU_CONFIG = REPO / "torch_models" / "neural" / "configs" / "decoder_cpu.json"
-TABLE1 = REPO / "docs" / "fit_flip_seed3.json"
+TABLE1 = REPO / "docs" / "reports" / "fit_flip_seed3.json"
 SAMPLER_STEPS = 600
 
 
@@ -62,7 +62,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=2000, help="decoder training steps per material")
     parser.add_argument("--seed", type=int, default=3, help="the Table 1 draw the names refer to")
     parser.add_argument("--per-type", type=int, default=10)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "single_material_decoder.json")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "single_material_decoder.json")
     args = parser.parse_args()
 
     import torch

@@ -1,7 +1,7 @@
 """Text-to-neural-material generator (paper sec. 5.2): a small conditional multi-view diffusion model."""
 
 # Sampling steps, views and samples averaged of a generation, chosen from bench/generate_speed.py
-# (docs/generate_speed.json; the samples from its samples sweep, docs/generate_samples.json).
+# (docs/reports/generate_speed.json; the samples from its samples sweep, docs/reports/generate_samples.json).
 # Here, torch-free, so that the CLI's --help reads them without importing torch.
 DEFAULT_STEPS = 18
 DEFAULT_VIEWS = 12
