@@ -7,9 +7,15 @@
     references are rendered once.
 (d) Decoder evaluations per second (batch 65536, fp32, inference) against the
     measured fp32 matmul peak of this machine (square 2048 matmuls, same
-    thread count): the fraction of peak the decoder reaches.
+    thread count): the fraction of peak the decoder reaches (its Linear layers'
+    flops; the hybrid's closed-form lobes are not counted). Two regimes: every
+    evaluation a new (latent, wi, wo), as in fitting; and a renderer's shading
+    point, one (latent, wi) and ``SHADING_DIRECTIONS`` wo, where the hybrid's head
+    runs once per point (the MLP has nothing to reuse).
 
-    python bench/fit_speed.py [--per-type M] [--seed S] [--repeats R] [--out FILE.json]
+    python bench/fit_speed.py [--per-type M] [--seed S] [--repeats R] [--weights RUN ...] [--out FILE.json]
+
+``--weights`` repeats: the decoders side by side on the same materials, interleaved.
 
 Timings are medians of R runs, interleaved, on a shared machine: compare the
 ratios, not the absolute seconds.
@@ -29,9 +35,11 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
 from agreement_cases import cases  # noqa: E402
+from provenance import provenance  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference  # noqa: E402
 from torch_models.neural.fitting import FIT_BATCH, fit_latents  # noqa: E402
+from torch_models.neural.hybrid import HybridDecoder  # noqa: E402
 from torch_models.neural.networks import LATENT  # noqa: E402
 
 STEPS = (0, 25, 50, 100, 200, 400, 800)
@@ -60,21 +68,53 @@ def matmul_peak_flops(size: int = 2048, repeats: int = 5) -> float:
     return 2 * size ** 3 / float(np.median(times))
 
 
-def decoder_throughput(model: weights.NeuralModel, batch: int = 65536, repeats: int = 5) -> tuple[float, int]:
-    """Median decoder evaluations per second, and multiply-add FLOPs per evaluation."""
-    z = torch.rand(batch, LATENT) * 2 - 1
-    wi = torch.nn.functional.normalize(torch.rand(batch, 3) + torch.tensor([0, 0, 0.2]), dim=-1)
-    wo = torch.nn.functional.normalize(torch.rand(batch, 3) + torch.tensor([0, 0, 0.2]), dim=-1)
+SHADING_DIRECTIONS = 64  # wo per shading point in the second regime (the OSL preview's default samples)
+
+
+def decoder_throughput(model: weights.NeuralModel, batch: int = 65536, repeats: int = 5,
+                       shading: int = 1) -> tuple[float, int]:
+    """Median decoder evaluations per second, and Linear-layer FLOPs per evaluation, with
+    ``shading`` wo per (latent, wi): the hybrid's head runs once per such point."""
+    gen = torch.Generator().manual_seed(0)
+    points = batch // shading
+    z = torch.rand(points, LATENT, generator=gen) * 2 - 1
+    wi = torch.nn.functional.normalize(torch.rand(points, 3, generator=gen) + torch.tensor([0, 0, 0.2]), dim=-1)
+    wo = torch.nn.functional.normalize(torch.rand(batch, 3, generator=gen) + torch.tensor([0, 0, 0.2]), dim=-1)
+    dec = model.decoder
+
+    def run() -> None:
+        z_all, wi_all = z.repeat_interleave(shading, 0), wi.repeat_interleave(shading, 0)
+        if isinstance(dec, HybridDecoder):
+            dec.lobe_sum(dec.head_at(z, wi).repeat(shading), z_all, wi_all, wo)
+        else:
+            dec(z_all, wi_all, wo)
+
     times = []
     with torch.no_grad():
-        model.decoder(z, wi, wo)
+        run()
         for _ in range(repeats):
             t0 = time.perf_counter()
-            model.decoder(z, wi, wo)
+            run()
             times.append(time.perf_counter() - t0)
-    linears = [m for m in model.decoder.modules() if isinstance(m, torch.nn.Linear)]
-    flops = sum(2 * m.in_features * m.out_features for m in linears)
-    return batch / float(np.median(times)), flops
+    heads = [dec.head] if isinstance(dec, HybridDecoder) else []
+    per_point = sum(2 * m.in_features * m.out_features for h in heads for m in h.modules() if isinstance(m, torch.nn.Linear))
+    every = sum(2 * m.in_features * m.out_features for m in dec.modules() if isinstance(m, torch.nn.Linear)) - per_point
+    return batch / float(np.median(times)), round(every + per_point / shading)
+
+
+def measure(folders: list[Path], vectors: np.ndarray, repeats: int, seed: int) -> dict[Path, dict]:
+    """Fit seconds (median of ``repeats``, interleaved over decoders and variants) and latents per variant."""
+    models = {f: weights.load(f) for f in folders}
+    variants = [("encoder", 0)] + [(s, k) for k in STEPS[1:] for s in ("encoder", "random")]
+    seconds = {f: {v: [] for v in variants} for f in folders}
+    latents: dict[Path, dict] = {f: {} for f in folders}
+    for _ in range(repeats):  # interleaved, so load changes hit every decoder and variant alike
+        for start, steps in variants:
+            for f in folders:
+                z, dt = fit_variant(models[f], vectors, start, steps, seed)
+                seconds[f][(start, steps)].append(dt)
+                latents[f][(start, steps)] = z
+    return {f: {"model": models[f], "seconds": seconds[f], "latents": latents[f]} for f in folders}
 
 
 def main() -> None:
@@ -82,49 +122,50 @@ def main() -> None:
     parser.add_argument("--per-type", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats per variant (median)")
-    parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
+    parser.add_argument("--weights", type=Path, action="append",
+                        help="a decoder's weights folder; repeat to compare decoders (default: the shipped one)")
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "fit_speed.json")
     args = parser.parse_args()
+    folders = args.weights or [weights.SHIPPED]
 
-    model = weights.load(args.weights)
     drawn = cases(args.seed + 7, args.per_type, 0)
     vectors = np.stack([c.vector() for c in drawn])
     setup = BallSetup.default(resolution=96, spp=32, seed=args.seed)
     references = [render_reference(setup, vectors[k], np.array(c.base_color, np.float32))
                   for k, c in enumerate(drawn)]
-
-    variants = [("encoder", 0)] + [(s, k) for k in STEPS[1:] for s in ("encoder", "random")]
-    seconds: dict[tuple[str, int], list[float]] = {v: [] for v in variants}
-    latents: dict[tuple[str, int], torch.Tensor] = {}
-    for _ in range(args.repeats):  # interleaved, so load changes hit every variant alike
-        for start, steps in variants:
-            z, dt = fit_variant(model, vectors, start, steps, args.seed)
-            seconds[(start, steps)].append(dt)
-            latents[(start, steps)] = z
-    rows = []
-    for start, steps in variants:
-        z = latents[(start, steps)]
-        flips = [compare(references[k], render_neural(setup, model, z[k], np.array(c.base_color, np.float32))).flip
-                 for k, c in enumerate(drawn)]
-        rows.append({"start": start, "steps": steps, "fit_seconds": float(np.median(seconds[(start, steps)])),
-                     "decoder_evaluations": steps * FIT_BATCH, "median_flip": float(np.median(flips)),
-                     "worst_flip": float(max(flips))})
-        print(f"{start:8s} + {steps:4d} steps: {rows[-1]['fit_seconds']:6.2f} s, "
-              f"median FLIP {rows[-1]['median_flip']:.4f}, worst {rows[-1]['worst_flip']:.4f}", flush=True)
-
+    measured = measure(folders, vectors, args.repeats, args.seed)
     threads = torch.get_num_threads()
     peak = matmul_peak_flops()
-    evals, flops = decoder_throughput(model)
-    report = {"seed": args.seed, "materials": len(drawn), "decoder_sha256": model.digest,
-              "fit_batch": FIT_BATCH, "repeats": args.repeats, "threads": threads, "variants": rows,
-              "throughput": {"decoder_evals_per_second": evals, "flops_per_eval": flops,
-                             "decoder_flops_per_second": evals * flops, "matmul_peak_flops_per_second": peak,
-                             "fraction_of_peak": evals * flops / peak}}
+    decoders = []
+    for folder, m in measured.items():
+        model, rows = m["model"], []
+        for (start, steps), z in m["latents"].items():
+            flips = [compare(references[k], render_neural(setup, model, z[k], np.array(c.base_color, np.float32))).flip
+                     for k, c in enumerate(drawn)]
+            rows.append({"start": start, "steps": steps, "fit_seconds": float(np.median(m["seconds"][(start, steps)])),
+                         "decoder_evaluations": steps * FIT_BATCH, "median_flip": float(np.median(flips)),
+                         "worst_flip": float(max(flips))})
+            print(f"{model.decoder.kind:6s} {start:8s} + {steps:4d} steps: {rows[-1]['fit_seconds']:6.2f} s, "
+                  f"median FLIP {rows[-1]['median_flip']:.4f}, worst {rows[-1]['worst_flip']:.4f}", flush=True)
+        throughput = {}
+        for regime, shading in (("per_evaluation", 1), ("per_shading_point", SHADING_DIRECTIONS)):
+            evals, flops = decoder_throughput(model, shading=shading)
+            throughput[regime] = {"decoder_evals_per_second": evals, "flops_per_eval": flops,
+                                  "decoder_flops_per_second": evals * flops, "fraction_of_peak": evals * flops / peak}
+            print(f"{model.decoder.kind} {regime}: {evals / 1e6:.2f} M evals/s, {flops} flops/eval, "
+                  f"{evals * flops / peak:.1%} of the {peak / 1e9:.1f} GFLOP/s matmul peak", flush=True)
+        decoders.append({"weights": str(folder), "kind": model.decoder.kind, "decoder_sha256": model.digest,
+                         "variants": rows, "throughput": throughput})
+    base = decoders[0]["throughput"]
+    for d in decoders:
+        d["evals_per_second_vs_first"] = {r: d["throughput"][r]["decoder_evals_per_second"]
+                                          / base[r]["decoder_evals_per_second"] for r in base}
+    report = {"seed": args.seed, "materials": len(drawn), "provenance": provenance(folders), "fit_batch": FIT_BATCH,
+              "repeats": args.repeats, "threads": threads, "matmul_peak_flops_per_second": peak,
+              "shading_directions": SHADING_DIRECTIONS, "decoders": decoders}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=1))
     chart(report, args.out.with_suffix(".png"))
-    print(f"decoder: {evals / 1e6:.2f} M evals/s = {evals * flops / 1e9:.1f} GFLOP/s, "
-          f"{evals * flops / peak:.1%} of the {peak / 1e9:.1f} GFLOP/s matmul peak ({threads} threads)")
 
 
 def chart(report: dict, path: Path) -> None:
@@ -133,28 +174,34 @@ def chart(report: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
-    for start, colour in (("encoder", "tab:blue"), ("random", "tab:orange")):
-        rows = [r for r in report["variants"] if r["start"] == start and r["steps"] > 0]
+    fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.5))
+    for d, colour in zip(report["decoders"], plt.cm.tab10.colors):
+        name = f"{d['kind']} {d['decoder_sha256'][:8]}"
+        rows = [r for r in d["variants"] if r["start"] == "encoder" and r["steps"] > 0]
         a.plot([r["fit_seconds"] for r in rows], [r["median_flip"] for r in rows], "o-", color=colour,
-               label=f"{start} start + k steps (median)")
+               label=f"{name}: encoder start + k steps (median)")
         a.plot([r["fit_seconds"] for r in rows], [r["worst_flip"] for r in rows], "x:", color=colour,
-               label=f"{start} start (worst)")
+               label=f"{name} (worst)")
         for r in rows:
             a.annotate(str(r["steps"]), (r["fit_seconds"], r["median_flip"]), fontsize=7)
-    enc = next(r for r in report["variants"] if r["steps"] == 0)
-    a.axhline(enc["median_flip"], color="tab:green", ls="--", label="encoder only (median)")
     a.set_xscale("log")
     a.set_xlabel(f"fit wall time for {report['materials']} materials (s, median of {report['repeats']})")
     a.set_ylabel("FLIP, neural vs analytic")
-    a.set_title(f"fit cost vs accuracy (batch {report['fit_batch']} evaluations per step)")
+    a.set_title(f"accuracy against fit cost (batch {report['fit_batch']} evaluations per step)")
     a.legend(fontsize=7)
-    t = report["throughput"]
-    b.bar(["matmul peak", "decoder"], [t["matmul_peak_flops_per_second"] / 1e9, t["decoder_flops_per_second"] / 1e9],
-          color=["gray", "tab:blue"])
-    b.set_ylabel("GFLOP/s (fp32)")
-    b.set_title(f"decoder at {t['fraction_of_peak']:.0%} of matmul peak "
-                f"({t['decoder_evals_per_second'] / 1e6:.2f} M evals/s, {report['threads']} threads)")
+    regimes = ("per_evaluation", "per_shading_point")
+    width = 0.8 / len(report["decoders"])
+    for k, (d, colour) in enumerate(zip(report["decoders"], plt.cm.tab10.colors)):
+        values = [d["throughput"][r]["decoder_evals_per_second"] / 1e6 for r in regimes]
+        bars = b.bar(np.arange(2) + k * width, values, width, color=colour, label=f"{d['kind']} {d['decoder_sha256'][:8]}")
+        for bar, r in zip(bars, regimes):
+            b.annotate(f"{d['throughput'][r]['fraction_of_peak']:.0%} of peak", (bar.get_x(), bar.get_height()), fontsize=7)
+    b.set_xticks(np.arange(2) + width * (len(report["decoders"]) - 1) / 2,
+                 ["every evaluation new", f"{report['shading_directions']} wo per shading point"])
+    b.set_ylabel("M decoder evaluations / s (fp32)")
+    b.set_title(f"throughput, {report['threads']} threads (matmul peak "
+                f"{report['matmul_peak_flops_per_second'] / 1e9:.0f} GFLOP/s)")
+    b.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 

@@ -22,10 +22,12 @@ spatial filter mixes the outermost band with the silhouette), and the relative
 error of the directional albedo of f_neu (decoder against analytic, same
 Monte Carlo samples) against theta_i (no image in between).
 
-    python bench/neural_failure_modes.py [--seed S] [--quick] [--weights RUN]
+    python bench/neural_failure_modes.py [--seed S] [--quick] [--weights RUN ...]
 
-Writes docs/neural_failure_modes.json and .png (one panel per parameter, and
-analytic | neural | FLIP of the worst sweep point).
+``--weights`` repeats: the decoders are measured side by side on the same sweep
+points and the same analytic renders. Writes docs/reports/neural_failure_modes.json and
+.png (one panel per parameter, a line per decoder, and analytic | neural | FLIP
+of each decoder's worst sweep point).
 """
 from __future__ import annotations
 
@@ -41,8 +43,9 @@ import numpy as np
 import torch
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
+from provenance import provenance  # noqa: E402
 from richmat_addon.core.enhance import enhance  # noqa: E402
 from richmat_addon.core.maps import ParamMap, PbrInputs  # noqa: E402
 from richmat_addon.core.preview import PreviewScene  # noqa: E402
@@ -147,31 +150,18 @@ def albedo_errors(model: NeuralModel, vectors: np.ndarray, z: torch.Tensor, scal
     return ((neural - analytic).abs() / analytic.clamp(min=1e-6)).numpy()
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--quick", action="store_true", help="fewer points, smaller and noisier balls (< 2 min)")
-    parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "neural_failure_modes.json")
-    parser.add_argument("--steps", type=int, help="fit steps (all sweep points fitted together)")
-    args = parser.parse_args()
-    # Full: 200 x 4096 samples give each of the 27 points ~30 k, more than fit_flip.py gives each of its 300.
-    resolution, spp, steps, batch, albedo_n = (64, 16, 20, 1024, 512) if args.quick else (96, 32, 200, 4096, 4096)
-    steps = args.steps or steps
-
-    start = time.perf_counter()
-    model = weights.load(args.weights)
-    points = sweeps(args.seed, QUICK if args.quick else FULL)
+def evaluate(folder: Path, points: list[SweepPoint], references: list[np.ndarray], setup: BallSetup,
+             steps: int, batch: int, albedo_n: int, seed: int) -> tuple[dict, Comparison]:
+    """One decoder on every sweep point, fitted as ``fit`` does; its report block and worst comparison."""
+    model = weights.load(folder)
     vectors = np.stack([p.vector for p in points])
-    z = fit_latents(model, vectors, steps, batch=batch, seed=args.seed)
-    bounded = fit_bounded(model, vectors, z, seed=args.seed, steps=min(steps, REFIT_STEPS))  # as `fit` does
+    z = fit_latents(model, vectors, steps, batch=batch, seed=seed)
+    bounded = fit_bounded(model, vectors, z, seed=seed, steps=min(steps, REFIT_STEPS))  # as `fit` does
     z, check = bounded.z, bounded.check
     scale = check.energy_scale()
-    setup = BallSetup.default(resolution, spp, args.seed)
     rows, results = [], []
     for k, point in enumerate(points):
-        result = compare(render_reference(setup, point.vector, point.base_color),
-                         render_neural(setup, model, z[k], point.base_color, float(scale[k])))
+        result = compare(references[k], render_neural(setup, model, z[k], point.base_color, float(scale[k])))
         results.append(result)
         v = point.vector
         rows.append({"sweep": point.sweep, "value": point.value, "flip": result.flip,
@@ -179,76 +169,93 @@ def main() -> None:
                      "alpha_haze": float(v[CHANNEL_SLICES["alpha_haze"]][0]),
                      "furnace_albedo": float(check.albedo[k]), "refitted": bool(bounded.refitted[k]),
                      "energy_scale": float(scale[k])})
-        print(f"{point.sweep:22s} {point.value:5.2f}  FLIP {result.flip:.4f}", flush=True)
-    errors = albedo_errors(model, vectors, z, scale, albedo_n, args.seed)
-    report = {"seed": args.seed, "quick": args.quick, "resolution": resolution, "spp": spp, "fit_steps": steps,
-              "decoder_sha256": model.digest, "weights": str(args.weights),
-              "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
-              "base_color": points[0].base_color.tolist(), "points": rows,
-              "grazing": {"flip_by_view_band": flip_by_view_band([r.error for r in results],
-                                                                 view_cosines(setup.scene)),
-                          "albedo_theta_deg": list(ALBEDO_ANGLES),
-                          "albedo_rel_error_median": np.median(errors, 0).tolist(),
-                          "albedo_rel_error_max": errors.max(0).tolist()},
-              "above_target_worst": [r for r in rows if r["flip"] > TARGET_WORST]}
+        print(f"{model.decoder.kind:6s} {point.sweep:22s} {point.value:5.2f}  FLIP {result.flip:.4f}", flush=True)
+    errors = albedo_errors(model, vectors, z, scale, albedo_n, seed)
     worst = int(np.argmax([r["flip"] for r in rows]))
-    report["wall_seconds"] = time.perf_counter() - start
+    return {"weights": str(folder), "kind": model.decoder.kind, "decoder_sha256": model.digest, "points": rows,
+            "grazing": {"flip_by_view_band": flip_by_view_band([r.error for r in results], view_cosines(setup.scene)),
+                        "albedo_theta_deg": list(ALBEDO_ANGLES),
+                        "albedo_rel_error_median": np.median(errors, 0).tolist(),
+                        "albedo_rel_error_max": errors.max(0).tolist()},
+            "worst": rows[worst], "above_target_worst": [r for r in rows if r["flip"] > TARGET_WORST]}, results[worst]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--quick", action="store_true", help="fewer points, smaller and noisier balls (< 2 min)")
+    parser.add_argument("--weights", type=Path, action="append",
+                        help="a decoder's weights folder; repeat to compare decoders (default: the shipped one)")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "neural_failure_modes.json")
+    parser.add_argument("--steps", type=int, help="fit steps (all sweep points fitted together)")
+    args = parser.parse_args()
+    folders = args.weights or [weights.SHIPPED]
+    # Full: 200 x 4096 samples give each of the 27 points ~30 k, more than fit_flip.py gives each of its 300.
+    resolution, spp, steps, batch, albedo_n = (64, 16, 20, 1024, 512) if args.quick else (96, 32, 200, 4096, 4096)
+    steps = args.steps or steps
+
+    start = time.perf_counter()
+    points = sweeps(args.seed, QUICK if args.quick else FULL)
+    setup = BallSetup.default(resolution, spp, args.seed)
+    references = [render_reference(setup, p.vector, p.base_color) for p in points]
+    decoders, worst = [], []
+    for folder in folders:
+        block, comparison = evaluate(folder, points, references, setup, steps, batch, albedo_n, args.seed)
+        decoders.append(block)
+        worst.append(comparison)
+        print(f"{block['kind']} worst: {block['worst']['sweep']} {block['worst']['value']} "
+              f"FLIP {block['worst']['flip']:.4f}")
+    report = {"seed": args.seed, "quick": args.quick, "resolution": resolution, "spp": spp, "fit_steps": steps,
+              "provenance": provenance(folders),
+              "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
+              "base_color": points[0].base_color.tolist(), "decoders": decoders,
+              "wall_seconds": time.perf_counter() - start}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=1))
-    chart(report, results[worst], rows[worst], args.out.with_suffix(".png"))
-    print(f"worst: {rows[worst]['sweep']} {rows[worst]['value']} FLIP {rows[worst]['flip']:.4f}; "
-          f"{report['wall_seconds']:.0f} s")
+    chart(report, worst, args.out.with_suffix(".png"))
+    print(f"{report['wall_seconds']:.0f} s")
 
 
-def chart(report: dict, worst: Comparison, worst_row: dict, path: Path) -> None:
+def chart(report: dict, worst: list[Comparison], path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = report["points"]
-    fig = plt.figure(figsize=(12, 8.5))
-    grid = fig.add_gridspec(2, 4, height_ratios=[1.0, 0.9])
+    decoders = report["decoders"]
+    fig = plt.figure(figsize=(13, 4.2 + 2.6 * len(decoders)))
+    grid = fig.add_gridspec(1 + len(decoders), 4, height_ratios=[1.6] + [1.0] * len(decoders))
     panels = [fig.add_subplot(grid[0, k]) for k in range(4)]
+    for d, style in zip(decoders, ("o-", "s--", "^:", "d-.")):
+        rows, name = d["points"], f"{d['kind']} {d['decoder_sha256'][:8]}"
 
-    def series(ax, sweep: str, label: str | None = None) -> None:  # type: ignore[no-untyped-def]
-        pts = [r for r in rows if r["sweep"] == sweep]
-        ax.plot([r["value"] for r in pts], [r["flip"] for r in pts], "o-", label=label)
+        def series(ax, sweep: str, label: str) -> None:  # type: ignore[no-untyped-def]
+            pts = [r for r in rows if r["sweep"] == sweep]
+            ax.plot([r["value"] for r in pts], [r["flip"] for r in pts], style, label=label, ms=4)
 
-    def targets(ax) -> None:  # type: ignore[no-untyped-def]
+        series(panels[0], "roughness, dielectric", f"{name}, dielectric")
+        series(panels[0], "roughness, metal", f"{name}, metal")
+        series(panels[1], "ior", name)
+        series(panels[2], "metalness", name)
+        bands = d["grazing"]["flip_by_view_band"]
+        panels[3].plot([b["theta_mid_deg"] for b in bands], [b["flip"] for b in bands], style, ms=4, label=name)
+    panels[0].set_xscale("log")
+    panels[0].set(xlabel="PBR roughness r (alpha_core = r^p)", ylabel="mean FLIP, neural vs analytic", title="Roughness")
+    panels[1].set(xlabel="dielectric IOR", title="IOR")
+    panels[2].set(xlabel="metalness", title="Metalness")
+    panels[3].set(xlabel="view angle theta (deg)", title="Grazing angle (FLIP per view band on the ball)")
+    for ax in panels:
         ax.axhline(TARGET_MEDIAN, ls="--", color="gray", lw=0.8)
         ax.axhline(TARGET_WORST, ls=":", color="gray", lw=0.8)
         ax.set_ylim(bottom=0)
-
-    ax = panels[0]
-    series(ax, "roughness, dielectric", "dielectric")
-    series(ax, "roughness, metal", "metal")
-    ax.set_xscale("log")
-    ax.set(xlabel="PBR roughness r (alpha_core = r^p)", ylabel="mean FLIP, neural vs analytic", title="Roughness")
-    ax.legend(fontsize=8)
-    for ax, sweep, xlabel, title in ((panels[1], "ior", "dielectric IOR", "IOR"),
-                                     (panels[2], "metalness", "metalness", "Metalness")):
-        series(ax, sweep)
-        ax.set(xlabel=xlabel, title=title)
-    ax = panels[3]
-    bands = report["grazing"]["flip_by_view_band"]
-    ax.plot([b["theta_mid_deg"] for b in bands], [b["flip"] for b in bands], "o-", label="FLIP per view band (ball)")
-    ax.set(xlabel="view angle theta (deg)", title="Grazing angle")
-    twin = ax.twinx()
-    twin.plot(report["grazing"]["albedo_theta_deg"], report["grazing"]["albedo_rel_error_median"], "s--",
-              color="tab:red", label="albedo rel. error, median")
-    twin.set_ylabel("relative error of f_neu albedo", color="tab:red")
-    twin.set_ylim(bottom=0)
-    ax.legend(fontsize=7, loc="upper left")
-    twin.legend(fontsize=7, loc="center left")
-    for ax in panels:
-        targets(ax)
-    sheet = fig.add_subplot(grid[1, :])
-    sheet.imshow(side_by_side([worst]))
-    sheet.set_axis_off()
-    sheet.set_title(f"worst point: {worst_row['sweep']} = {worst_row['value']:g} "
-                    f"(alpha_core {worst_row['alpha_core']:.2g}), FLIP {worst_row['flip']:.3f}: "
-                    "analytic | neural | FLIP map", fontsize=9)
+        ax.legend(fontsize=6)
+    for k, (d, comparison) in enumerate(zip(decoders, worst)):
+        sheet = fig.add_subplot(grid[1 + k, :])
+        sheet.imshow(side_by_side([comparison]))
+        sheet.set_axis_off()
+        w = d["worst"]
+        sheet.set_title(f"{d['kind']}: worst point {w['sweep']} = {w['value']:g} (alpha_core {w['alpha_core']:.2g}), "
+                        f"FLIP {w['flip']:.3f}: analytic | neural | FLIP map", fontsize=9)
     fig.suptitle(f"Where the neural material breaks down (Type 0 base, seed {report['seed']}, "
                  f"{report['resolution']} px, {report['spp']} spp; dashed 0.05, dotted 0.12)")
     fig.tight_layout()

@@ -86,13 +86,14 @@ def side_by_side(rows: list[Comparison]) -> np.ndarray:
 
 
 def fit_and_compare(setup: BallSetup, model: NeuralModel, vectors: np.ndarray, base_colors: np.ndarray,
-                    steps: int) -> tuple[list[Comparison], BoundedFit]:
-    """Fit all materials together (K, 22), refit or repair those that gain energy, compare each on the ball."""
+                    steps: int, references: list[np.ndarray] | None = None) -> tuple[list[Comparison], BoundedFit]:
+    """Fit all materials together (K, 22), refit or repair those that gain energy, compare each on the ball.
+    ``references`` are the analytic renders when already made (several decoders, same materials)."""
     bounded = fit_bounded(model, vectors, fit_latents(model, vectors, steps, seed=setup.seed), seed=setup.seed)
     z, scale = bounded.z, bounded.check.energy_scale()
-    results = [compare(render_reference(setup, vectors[k], base_colors[k]),
+    results = [compare(render_reference(setup, vectors[k], base_colors[k]) if references is None else references[k],
                        render_neural(setup, model, z[k], base_colors[k], float(scale[k])))
-               for k in tqdm(range(len(vectors)), desc="render analytic and neural", unit="material")]
+               for k in tqdm(range(len(vectors)), desc="render neural", unit="material")]
     return results, bounded
 
 
