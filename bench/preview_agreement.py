@@ -53,7 +53,8 @@ from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
 prefer_blender_bundled_modules()
 from richmat_addon.blender import cycles_builder, preview_scene
 from richmat_addon.core.preview import PreviewScene
-from richmat_addon.core.neural_osl import neural_osl_source, read_safetensors
+from richmat_addon.core.neural_osl import neural_osl_source
+from richmat_addon.core.tensor_file import read_safetensors
 job = json.loads(Path(sys.argv[1]).read_text())
 bpy.ops.wm.read_homefile(use_empty=True)
 scene = bpy.context.scene

@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from richmat_addon.core.neural_osl import neural_osl_source, read_safetensors
+from richmat_addon.core.neural_osl import neural_osl_source
+from richmat_addon.core.tensor_file import read_safetensors
 
 from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
 
@@ -57,7 +58,8 @@ from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
 prefer_blender_bundled_modules()
 from richmat_addon.blender import cycles_builder, preview_scene
 from richmat_addon.core.preview import PreviewScene
-from richmat_addon.core.neural_osl import neural_osl_source, read_safetensors
+from richmat_addon.core.neural_osl import neural_osl_source
+from richmat_addon.core.tensor_file import read_safetensors
 bpy.ops.wm.read_homefile(use_empty=True)
 scene = bpy.context.scene
 mat = bpy.data.materials.new("neural")

@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from richmat_addon.core.neural_osl import neural_osl_source, read_safetensors
+from richmat_addon.core.neural_osl import neural_osl_source
+from richmat_addon.core.tensor_file import read_safetensors
 
 from .test_addon_preview import cycles_ball, torch_ball
 from .test_hybrid_decoder import tiny_hybrid  # noqa: F401  (module fixture: a 40-step hybrid run)

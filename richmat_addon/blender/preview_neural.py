@@ -16,7 +16,8 @@ import bpy
 
 from ..core import material_folder, neural_folder
 from ..core.folder_io import FormatError
-from ..core.neural_osl import neural_osl_source, read_safetensors
+from ..core.neural_osl import neural_osl_source
+from ..core.tensor_file import read_safetensors
 from . import neural_assets, neural_backend, uplift
 from .cycles_builder import COLOR_SPACE_COLOR, COLOR_SPACE_DATA, compile_script_node, enable_osl
 from .osl_env import prefer_blender_bundled_modules

@@ -31,12 +31,11 @@ Directions are local to the Duff et al. tangent frame the torch renderer uses.
 """
 from __future__ import annotations
 
-import json
 import math
-import struct
-from pathlib import Path
 
 import numpy as np
+
+from .tensor_file import linear_layers
 
 MAX_LOG_F = 12.0  # networks.MAX_LOG_F
 # Share of directions drawn uniformly over the hemisphere: at grazing views the MLP's
@@ -50,28 +49,6 @@ LUMINANCE = (0.2126, 0.7152, 0.0722)  # brdf.model.LUMINANCE
 # A network's input width names its direction encoding (networks.DIRECTION_ENCODINGS):
 # 6 latents + 10 ("half") or + 11 ("half_log_slope", which appends ln(tan^2 theta_h) / 8).
 _ENCODING_EXTRA = {16: "", 17: ", log_slope"}
-_DTYPES = {"F32": np.float32, "F16": np.float16, "F64": np.float64}
-
-
-def read_safetensors(path: str | Path) -> dict[str, np.ndarray]:
-    """Tensors of a .safetensors file (8-byte header size, JSON header, raw data); no torch."""
-    raw = Path(path).read_bytes()
-    (size,) = struct.unpack("<Q", raw[:8])
-    header = json.loads(raw[8:8 + size])
-    data = raw[8 + size:]
-    out = {}
-    for name, info in header.items():
-        if name == "__metadata__":
-            continue
-        start, end = info["data_offsets"]
-        out[name] = np.frombuffer(data[start:end], dtype=_DTYPES[info["dtype"]]).reshape(info["shape"]).astype(np.float32)
-    return out
-
-
-def _layers(tensors: dict[str, np.ndarray], prefix: str) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(weight (out, in), bias) of each Linear of the ``mlp`` named prefix (``decoder.net``: indices 0, 2, ...)."""
-    keys = sorted({int(k[len(prefix) + 1:].split(".")[0]) for k in tensors if k.startswith(prefix + ".")})
-    return [(tensors[f"{prefix}.{i}.weight"], tensors[f"{prefix}.{i}.bias"]) for i in keys]
 
 
 def _array(name: str, values: np.ndarray) -> str:
@@ -387,7 +364,7 @@ def _defines(**values: object) -> str:
 
 
 def _mlp_parts(tensors: dict[str, np.ndarray]) -> str:
-    decoder, sampler = _layers(tensors, "decoder.net"), _layers(tensors, "sampler.net")
+    decoder, sampler = linear_layers(tensors, "decoder.net"), linear_layers(tensors, "sampler.net")
     inputs = decoder[0][0].shape[1]
     if inputs not in _ENCODING_EXTRA or decoder[-1][0].shape[0] != 5 or sampler[-1][0].shape[0] != 9:
         raise ValueError("the weights do not match the MLP decoder layout this shader implements "
@@ -397,7 +374,7 @@ def _mlp_parts(tensors: dict[str, np.ndarray]) -> str:
 
 
 def _hybrid_parts(tensors: dict[str, np.ndarray]) -> str:
-    head, gates = _layers(tensors, "decoder.head"), _layers(tensors, "decoder.gates")
+    head, gates = linear_layers(tensors, "decoder.head"), linear_layers(tensors, "decoder.gates")
     k = (head[-1][0].shape[0] - 7) // 5
     if (head[0][0].shape[1] != 9 or head[-1][0].shape[0] != 5 * k + 7 or k < 1 or gates[0][0].shape[1] != 16
             or gates[-1][0].shape[0] != 3 * (k + 1) or "decoder.alpha_floor" not in tensors):
