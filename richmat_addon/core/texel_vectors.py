@@ -1,0 +1,69 @@
+"""An enhanced material folder's per-texel parameter vectors, deduplicated, in numpy.
+
+Model no more than the material needs: texels with equal parameter vectors are
+encoded or fitted once (exact dedupe), then vectors that agree to within a
+quantisation step in the normalised parameter space are merged (every texel is
+within half a step, ``QUANT / 2`` per normalised coordinate, of its
+representative). A constant material stays one vector. Torch-free, so the
+add-on's numpy encoder in a stock Blender dedupes as the torch fit does.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import material_folder
+from .schema import PARAMS, bounds
+
+QUANT = 1.0 / 256.0
+
+
+def normalise(vectors: np.ndarray) -> np.ndarray:
+    """Packed (N, 22) schema vectors mapped to [0, 1] by the schema's bounds (float32, as the networks see them)."""
+    lo, hi = (np.asarray(b, np.float32) for b in bounds())
+    return (np.asarray(vectors, np.float32) - lo) / (hi - lo)
+
+
+@dataclass
+class TexelVectors:
+    """Per-texel parameter vectors of a material folder, deduplicated."""
+
+    shape: tuple[int, int] | None  # texture size, or None for a constant material
+    unique: np.ndarray  # (K, 22) representatives
+    inverse: np.ndarray  # (H*W,) representative of every texel (empty when constant)
+    exact_unique: int  # distinct vectors before merging
+
+    def texels(self, per_vector: np.ndarray) -> np.ndarray:
+        """Per-representative values (K, C) scattered to the texture, (H, W, C)."""
+        assert self.shape is not None, "a constant material has no texels"
+        values = per_vector.reshape(len(per_vector), -1)[self.inverse]
+        return np.ascontiguousarray(values.reshape(*self.shape, -1))
+
+
+def read_vectors(folder: Path) -> TexelVectors:
+    """Parameter vectors of an enhanced material folder (params.json + EXRs)."""
+    mf = material_folder.read(folder)
+    maps = {p.name: mf.map(p.name).value for p in PARAMS}
+    shape = max((m.shape[:2] for m in maps.values() if m.ndim == 3), default=None, key=lambda s: s[0] * s[1])
+    columns = []
+    for p in PARAMS:
+        m = maps[p.name]
+        if m.ndim == 3:
+            if m.shape[:2] != shape:  # nearest resampling to the largest map
+                rows = (np.arange(shape[0]) * m.shape[0] // shape[0])[:, None]
+                cols = (np.arange(shape[1]) * m.shape[1] // shape[1])[None, :]
+                m = m[rows, cols]
+            columns.append(m.reshape(-1, p.channels))
+        else:
+            columns.append(np.broadcast_to(m, ((shape[0] * shape[1]) if shape else 1, p.channels)))
+    vectors = np.nan_to_num(np.concatenate(columns, 1).astype(np.float32))
+    exact, inverse = np.unique(vectors, axis=0, return_inverse=True)
+    keys = np.round(normalise(exact) / QUANT).astype(np.int64)
+    merged_keys, merged_of_exact = np.unique(keys, axis=0, return_inverse=True)
+    representatives = np.zeros((len(merged_keys), vectors.shape[1]), np.float32)
+    np.add.at(representatives, merged_of_exact.ravel(), exact)
+    representatives /= np.bincount(merged_of_exact.ravel())[:, None]
+    texel_rep = merged_of_exact.ravel()[inverse.ravel()] if shape else np.zeros(0, np.int64)
+    return TexelVectors(shape, representatives, texel_rep, len(exact))
