@@ -1,10 +1,14 @@
-"""Add-on preferences (the torch backend) and the fitted latent textures in a material."""
+"""Add-on preferences (the torch backend, found by itself when it can be) and the fitted latent
+textures in a material."""
 from __future__ import annotations
 
 from pathlib import Path
 from types import SimpleNamespace
 
 import bpy
+
+from . import neural_backend
+from .pbr_source import InputProblem
 
 ADDON = __package__.rsplit(".", 1)[0]  # "bl_ext.<repo>.richmat" when installed as an extension
 LATENT_FILES = ("latent_0.exr", "latent_1.exr")
@@ -30,6 +34,11 @@ class RichmatPreferences(bpy.types.AddonPreferences):
                     "with torch_models")
 
     def draw(self, context: bpy.types.Context) -> None:
+        try:
+            found = backend(context)
+            self.layout.label(text=f"Torch backend: {found.python}", icon="CHECKMARK")
+        except neural_backend.BackendProblem as exc:
+            self.layout.label(text=f"Fit writes the encoder's latents only; {exc}", icon="INFO")
         for name in ("python", "source_dir", "weights_dir", "generator_dir"):
             self.layout.prop(self, name)
 
@@ -40,6 +49,34 @@ def preferences(context: bpy.types.Context):
     if addon is not None and addon.preferences is not None:
         return addon.preferences
     return SimpleNamespace(python="", source_dir="", weights_dir="", generator_dir="")
+
+
+def search_from() -> list[Path]:
+    """Where a backend's .venv is looked for: the add-on's folder and the current .blend's, and above."""
+    return [neural_backend.ADDON_ROOT] + ([Path(bpy.data.filepath).parent] if bpy.data.filepath else [])
+
+
+def backend(context: bpy.types.Context) -> neural_backend.Backend:
+    """The torch backend to run, or a BackendProblem naming what to install and where."""
+    prefs = preferences(context)
+    return neural_backend.find_backend(bpy.path.abspath(prefs.python), bpy.path.abspath(prefs.source_dir),
+                                       search_from())
+
+
+def backend_in_sight(context: bpy.types.Context) -> bool:
+    """Whether a backend may be there, without starting a Python (for polls, asked on every redraw)."""
+    return (neural_backend.blender_has_torch() or bool(preferences(context).python)
+            or bool(neural_backend.venv_candidates(search_from())))
+
+
+def decoder_folder(context: bpy.types.Context) -> Path:
+    """The decoder folder (weights.safetensors, state.json) the latents belong to, or an InputProblem."""
+    prefs = preferences(context)
+    folder = neural_backend.decoder_dir(bpy.path.abspath(prefs.weights_dir), bpy.path.abspath(prefs.source_dir))
+    if folder is None:
+        raise InputProblem("no decoder weights: set Decoder Weights (or Richmat Source) in "
+                           "Preferences > Add-ons > Richmat")
+    return folder
 
 
 def assign_latents(enhanced: bpy.types.Material, folder: Path) -> str:

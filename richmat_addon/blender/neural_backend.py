@@ -2,8 +2,12 @@
 
 Blender's own Python has numpy but no torch, so fitting and generation run in an interpreter
 that has torch and richmat's ``torch_models``: Blender's own when both import
-there (the pip ``bpy`` module in the project's venv), otherwise the one set in
-the add-on preferences. A child process, not a thread, because a fit can be
+there (the pip ``bpy`` module in the project's venv), else the one set in the
+add-on preferences, else one found by itself: a ``.venv`` (or ``richmat/.venv``)
+in the add-on's folder or the current .blend's folder or any folder above them,
+whose Python imports torch and torch_models. Without any, Fit still writes the
+encoder's latents (core/neural_encoder.py, numpy) and Generate says what to
+install. A child process, not a thread, because a fit can be
 cancelled at any step (terminate) and a crash in torch cannot take Blender
 down. Protocol (stdout, one JSON object per line; docs/addon.md):
 
@@ -13,6 +17,7 @@ down. Protocol (stdout, one JSON object per line; docs/addon.md):
 """
 from __future__ import annotations
 
+import functools
 import importlib.util
 import json
 import os
@@ -23,8 +28,16 @@ import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 
+ADDON_ROOT = Path(__file__).resolve().parents[1]  # the add-on package: the extension's folder when installed
 # The repository holding torch_models, when the add-on runs from a source checkout.
-SOURCE_ROOT = Path(__file__).resolve().parents[2]
+SOURCE_ROOT = ADDON_ROOT.parent
+# `make extension` ships the decoder (weights.safetensors, state.json) here: the numpy encoder and
+# the OSL preview need it in a stock Blender, where no torch_models is at hand.
+BUNDLED_DECODER = ADDON_ROOT / "decoder"
+SHIPPED_DECODER = Path("torch_models") / "neural" / "weights"  # below a backend root
+VENV_PYTHONS = (Path(".venv") / "bin" / "python", Path(".venv") / "Scripts" / "python.exe")
+INSTALL_HINT = ("clone richmat and run `make env` in it (a .venv with torch) in the folder of your .blend or "
+                "one above it, or set Backend Python in Preferences > Add-ons > Richmat")
 
 
 class BackendProblem(RuntimeError):
@@ -41,18 +54,69 @@ def backend_root(configured: str) -> Path | None:
     return next((f for f in candidates if (f / "torch_models" / "__main__.py").is_file()), None)
 
 
-def choose_python(configured: str) -> str:
-    """The interpreter for the backend, or a BackendProblem naming the fix."""
-    if importlib.util.find_spec("torch") is not None and backend_root("") is not None:
-        return sys.executable
+def decoder_dir(configured_weights: str, configured_source: str) -> Path | None:
+    """The decoder the add-on encodes, fits and previews with: the preference, the one shipped in
+    the extension, else torch_models' shipped one; None when there is none at all."""
+    if configured_weights:
+        return Path(configured_weights)
+    if BUNDLED_DECODER.is_dir():
+        return BUNDLED_DECODER
+    root = backend_root(configured_source)
+    return root / SHIPPED_DECODER if root is not None else None
+
+
+@dataclass(frozen=True)
+class Backend:
+    """An interpreter that runs ``python -m torch_models`` and the folder to put on its path (if any)."""
+
+    python: str
+    source_root: Path | None
+
+
+def venv_candidates(search_from: list[Path]) -> list[Backend]:
+    """Each ``.venv`` Python in, or in a ``richmat`` folder in, the given folders and those above them."""
+    found = []
+    for start in search_from:
+        for folder in (start, *start.parents):
+            for root in (folder, folder / "richmat"):
+                python = next((root / p for p in VENV_PYTHONS if (root / p).is_file()), None)
+                if python is not None and Backend(str(python), root) not in found:
+                    found.append(Backend(str(python), root))
+    return found
+
+
+@functools.lru_cache(maxsize=16)
+def runs_torch_models(backend: Backend) -> bool:
+    """Whether the interpreter imports torch and torch_models (with its root on the path). Cached:
+    importing torch takes seconds, and panels ask on every redraw."""
+    env = dict(os.environ, PYTHONPATH=str(backend.source_root or ""))
+    try:
+        return subprocess.run([backend.python, "-c", "import torch, torch_models"], env=env, timeout=120,
+                              stdin=subprocess.DEVNULL, capture_output=True).returncode == 0
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+
+
+def blender_has_torch() -> bool:
+    """Blender's own Python runs the backend (the pip bpy module in richmat's venv)."""
+    return importlib.util.find_spec("torch") is not None and backend_root("") is not None
+
+
+def find_backend(configured: str, configured_source: str, search_from: list[Path]) -> Backend:
+    """The backend to run, or a BackendProblem naming the fix: Blender's own Python, the preference,
+    else the first ``.venv`` found from ``search_from`` that imports torch and torch_models."""
+    source = backend_root(configured_source)
+    if blender_has_torch():
+        return Backend(sys.executable, source)
     if configured:
         if not Path(configured).is_file() or not os.access(configured, os.X_OK):
             raise BackendProblem(f"the backend Python {configured!r} does not exist or is not executable; "
                                  "fix it in Preferences > Add-ons > Richmat")
-        return configured
-    raise BackendProblem("no torch backend: Blender's Python has no torch. Set a Python with torch and "
-                         "richmat installed (pip install -e <richmat checkout>) in Preferences > Add-ons > "
-                         "Richmat > Backend Python")
+        return Backend(configured, source)
+    found = next((b for b in venv_candidates(search_from) if runs_torch_models(b)), None)
+    if found is None:
+        raise BackendProblem(f"no torch backend: {INSTALL_HINT}")
+    return Backend(found.python, backend_root(str(found.source_root)))
 
 
 @dataclass

@@ -11,7 +11,8 @@ from pathlib import Path
 import bpy
 
 from ..core.enhancement_types import DIELECTRIC_ONLY
-from ..core import material_folder
+from ..core import material_folder, neural_encoder
+from ..core.folder_io import FormatError
 from ..core.prompt import prompt_type
 from . import bake, mesh_maps, neural_assets, neural_backend, uplift
 from .cycles_builder import enable_osl
@@ -193,9 +194,7 @@ class _BackendOperator:
         except neural_backend.BackendProblem as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        enhanced = _enhanced(context)
-        enhanced.richmat.neural_dir = done["out"]
-        assigned = neural_assets.assign_latents(enhanced, Path(done["out"]))
+        assigned = _assign_latents(context, Path(done["out"]))
         warnings = "".join(f"; warning: {w}" for w in done.get("warnings", []))
         self.report({"WARNING"} if warnings else {"INFO"},
                     f"Neural material {self._did} into {done['out']}; {assigned}{warnings}")
@@ -241,15 +240,16 @@ class _BackendOperator:
         context.workspace.status_text_set(None)
 
 
-def _backend(context: bpy.types.Context) -> tuple[str, Path | None]:
-    """(interpreter, source root) of the torch backend, or a BackendProblem naming the fix."""
-    prefs = neural_assets.preferences(context)
-    return (neural_backend.choose_python(bpy.path.abspath(prefs.python)),
-            neural_backend.backend_root(bpy.path.abspath(prefs.source_dir)))
+def _assign_latents(context: bpy.types.Context, out: Path) -> str:
+    """Record the neural folder in the enhanced material and load its latent textures there."""
+    enhanced = _enhanced(context)
+    enhanced.richmat.neural_dir = str(out)
+    return neural_assets.assign_latents(enhanced, out)
 
 
 class RICHMAT_OT_fit_neural(_BackendOperator, bpy.types.Operator):
-    """Compress the baked material to two latent textures with the torch backend (Esc cancels)"""
+    """Compress the baked material to two latent textures: the encoder's at once (numpy), then
+    refined by the torch backend when there is one (Esc cancels the refinement)"""
 
     bl_idname = "richmat.fit_neural"
     bl_label = "Fit Neural Material"
@@ -266,13 +266,35 @@ class RICHMAT_OT_fit_neural(_BackendOperator, bpy.types.Operator):
             return False
         return True
 
-    def _make_job(self, context: bpy.types.Context) -> neural_backend.BackendJob:
-        prefs = neural_assets.preferences(context)
+    def _encode(self, context: bpy.types.Context) -> set[str] | None:
+        """Write and assign the encoder's latents (numpy, no torch); the operator's result when
+        that is all it does (an error, or no backend to refine them), None when the fit follows."""
         baked = Path(_enhanced(context).richmat.bake_dir)
-        python, source = _backend(context)
-        weights = bpy.path.abspath(prefs.weights_dir) if prefs.weights_dir else ""
-        return neural_backend.FitJob(python, baked, baked / "neural", _settings(context).fit_steps, weights,
-                                     source_root=source)
+        try:
+            record = neural_encoder.encode_material(baked, baked / "neural", neural_assets.decoder_folder(context))
+        except (InputProblem, FormatError, ValueError, OSError) as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        assigned = _assign_latents(context, baked / "neural")
+        try:
+            neural_assets.backend(context)
+        except neural_backend.BackendProblem as exc:
+            self.report({"INFO"}, f"Neural material encoded into {baked / 'neural'} ({record['fitted_vectors']} "
+                        f"vectors, encoder only: not refined, {exc}); {assigned}")
+            return {"FINISHED"}
+        return None
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        return self._encode(context) or super().execute(context)
+
+    def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[str]:
+        return self._encode(context) or super().invoke(context, event)
+
+    def _make_job(self, context: bpy.types.Context) -> neural_backend.BackendJob:
+        baked = Path(_enhanced(context).richmat.bake_dir)
+        backend = neural_assets.backend(context)
+        return neural_backend.FitJob(backend.python, baked, baked / "neural", _settings(context).fit_steps,
+                                     str(neural_assets.decoder_folder(context)), source_root=backend.source_root)
 
     def _total(self, context: bpy.types.Context) -> int:
         return _settings(context).fit_steps
@@ -294,6 +316,9 @@ class RICHMAT_OT_generate_material(_BackendOperator, bpy.types.Operator):
     def poll(cls, context: bpy.types.Context) -> bool:
         if not _mesh_with_material(cls, context):
             return False
+        if not neural_assets.backend_in_sight(context):
+            cls.poll_message_set(f"Generate needs the torch backend: {neural_backend.INSTALL_HINT}")
+            return False
         if not mesh_maps.has_uvs(context.active_object):
             cls.poll_message_set("The latents live in the UV map: run Unwrap UVs first")
             return False
@@ -304,7 +329,7 @@ class RICHMAT_OT_generate_material(_BackendOperator, bpy.types.Operator):
 
     def _make_job(self, context: bpy.types.Context) -> neural_backend.BackendJob:
         s, obj = _settings(context), context.active_object
-        python, source = _backend(context)  # before any change: a missing backend changes nothing
+        backend = neural_assets.backend(context)  # before any change: a missing backend changes nothing
         type_, _ = prompt_type(s.prompt)
         try:
             uplift.uplift(obj, False, str(type_), s.seed)
@@ -319,8 +344,8 @@ class RICHMAT_OT_generate_material(_BackendOperator, bpy.types.Operator):
         mesh_maps.write_obj(obj, [obj.active_material_index], mesh)
         prefs = neural_assets.preferences(context)
         checkpoint = bpy.path.abspath(prefs.generator_dir) if prefs.generator_dir else ""
-        return neural_backend.GenerateJob(python, mesh, baked, baked / "neural", s.prompt.strip(),
-                                          s.generate_steps, s.seed, checkpoint, source_root=source)
+        return neural_backend.GenerateJob(backend.python, mesh, baked, baked / "neural", s.prompt.strip(),
+                                          s.generate_steps, s.seed, checkpoint, source_root=backend.source_root)
 
     def _total(self, context: bpy.types.Context) -> int:
         return _settings(context).generate_steps

@@ -17,8 +17,9 @@ import bpy
 from ..core import material_folder, neural_folder
 from ..core.folder_io import FormatError
 from ..core.neural_osl import neural_osl_source
+from ..core.neural_encoder import WEIGHTS_FILE
 from ..core.tensor_file import read_safetensors
-from . import neural_assets, neural_backend, uplift
+from . import neural_assets, uplift
 from .cycles_builder import COLOR_SPACE_COLOR, COLOR_SPACE_DATA, compile_script_node, enable_osl
 from .osl_env import prefer_blender_bundled_modules
 from .pbr_source import InputProblem
@@ -26,17 +27,6 @@ from .pbr_source import InputProblem
 SCRIPT_NODE = "richmat_neural_osl"
 SUFFIX = " (richmat neural)"
 SAMPLES = 8  # directions per shading point for the neural lobe's world lighting
-
-
-def weights_file(prefs) -> Path:
-    """The decoder the add-on previews with: the preference, else torch_models' shipped weights."""
-    if prefs.weights_dir:
-        return Path(bpy.path.abspath(prefs.weights_dir)) / "weights.safetensors"
-    root = neural_backend.backend_root(bpy.path.abspath(prefs.source_dir))
-    if root is None:
-        raise InputProblem("no decoder weights: set Decoder Weights (or Richmat Source) in "
-                           "Preferences > Add-ons > Richmat")
-    return root / "torch_models" / "neural" / "weights" / "weights.safetensors"
 
 
 def _shader_text(weights: Path, digest: str) -> bpy.types.Text:
@@ -120,8 +110,7 @@ def add_neural_nodes(material: bpy.types.Material, text: bpy.types.Text, baked: 
 
 def preview(context: bpy.types.Context) -> list[str]:
     """Put the neural preview material in the slots whose enhanced material was fitted."""
-    prefs = neural_assets.preferences(context)
-    weights = weights_file(prefs)
+    weights = neural_assets.decoder_folder(context) / WEIGHTS_FILE
     if not weights.is_file():
         raise InputProblem(f"no decoder weights at {weights}: train them (python -m torch_models "
                            "train-decoder) or set Decoder Weights in Preferences > Add-ons > Richmat")
