@@ -17,9 +17,9 @@ REPO = Path(__file__).resolve().parents[1]
 SHIPPED_WEIGHTS = REPO / "torch_models" / "neural" / "weights"
 
 
-def fake_python(tmp_path: Path, body: str) -> str:
+def fake_python(tmp_path: Path, body: str, name: str = "fake_python") -> str:
     """An executable standing in for the backend interpreter."""
-    exe = tmp_path / "fake_python"
+    exe = tmp_path / name
     exe.write_text("#!/bin/sh\n" + body)
     exe.chmod(exe.stat().st_mode | stat.S_IXUSR)
     return str(exe)
@@ -112,3 +112,36 @@ def test_fit_writes_and_assigns_the_latent_textures(blender_run, extension_zip: 
     neural = Path(result["neural_dir"])
     assert (neural / "latent_0.exr").is_file() and (neural / "latent_1.exr").is_file()
     assert result["latents"] == ["latent_0.exr", "latent_1.exr"]
+
+
+def fake_venv(root: Path, body: str) -> Path:
+    """``root/.venv/bin/python``: a shell script standing in for a venv's interpreter."""
+    (root / ".venv" / "bin").mkdir(parents=True)
+    return Path(fake_python(root / ".venv" / "bin", body, "python"))
+
+
+def test_a_checkout_venv_above_the_blend_is_found_and_runs_the_backend(tmp_path: Path, monkeypatch):
+    """A .venv without torch is passed over; a checkout's (torch_models beside it) above the .blend's
+    folder is found, checked by importing, and runs the fit command from its source root."""
+    monkeypatch.setattr(neural_backend, "blender_has_torch", lambda: False)  # as in a stock Blender
+    fake_venv(tmp_path / "projects", "exit 1\n")  # no torch there
+    checkout = tmp_path / "projects" / "richmat"
+    python = fake_venv(checkout, f'exec {sys.executable} "$@"\n')
+    (checkout / "torch_models").symlink_to(REPO / "torch_models")
+    blend_dir = tmp_path / "projects" / "shots" / "a"
+    blend_dir.mkdir(parents=True)
+    assert [c.python for c in neural_backend.venv_candidates([blend_dir])] == [
+        str(tmp_path / "projects" / ".venv" / "bin" / "python"), str(python)]
+    found = neural_backend.find_backend("", "", [blend_dir])
+    assert found == neural_backend.Backend(str(python), checkout)
+    j = neural_backend.FitJob(found.python, tmp_path / "material", tmp_path / "neural", 3,
+                              source_root=found.source_root)
+    j.start()
+    with pytest.raises(neural_backend.BackendProblem, match="not an enhanced material folder"):
+        j.finish()
+
+
+def test_no_backend_anywhere_says_what_to_install_and_where(tmp_path: Path, monkeypatch):
+    monkeypatch.setattr(neural_backend, "blender_has_torch", lambda: False)
+    with pytest.raises(neural_backend.BackendProblem, match=r"no torch backend: clone richmat and run `make env`"):
+        neural_backend.find_backend("", "", [tmp_path])
