@@ -36,8 +36,10 @@ class TexelVectors:
     exact_unique: int  # distinct vectors before merging
 
     def texels(self, per_vector: np.ndarray) -> np.ndarray:
-        """Per-representative values (K, C) scattered to the texture, (H, W, C)."""
+        """Per-representative values (K, C) scattered to the texture, (H, W, C); any array-like
+        (a torch tensor too)."""
         assert self.shape is not None, "a constant material has no texels"
+        per_vector = np.asarray(per_vector)
         values = per_vector.reshape(len(per_vector), -1)[self.inverse]
         return np.ascontiguousarray(values.reshape(*self.shape, -1))
 

@@ -194,7 +194,7 @@ def bound_furnace(model: NeuralModel, z: Tensor) -> Furnace:
             wi = view_directions(torch.full((len(z), 1), mu))
             rows.append(model.decoder.albedo_bound(z, wi))
             ts.append(model.decoder(z, wi, wi)[1][:, 0])
-    bound = torch.stack(rows, 1)
+    bound = torch.stack(rows, 1).clamp(max=1.0)  # < 1 exactly; a float32 softmax sums to 1 +- rounding
     return Furnace(bound, torch.zeros_like(bound), torch.stack(ts, 1), bound.clone())
 
 

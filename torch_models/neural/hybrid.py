@@ -34,12 +34,14 @@ import torch
 from torch import Tensor, nn
 
 from ..brdf.frame import cos_theta, safe_normalize, sin2_theta
+from ..brdf import tables
 from ..brdf.ggx import ggx_pdf, ggx_sample
 from ..brdf.model import luminance
 from .networks import LATENT, direction_features, mlp
 
 LOG_ALPHA_MIN = math.log(1e-4)  # the lobe head's alphas span (1e-4, 1) before the floor
-INITIAL_ALPHAS = (0.02, 0.12, 0.45)  # lobe k starts near the k-th: a mirror-like, a glossy and a rough lobe
+INITIAL_ALPHAS = (0.02, 0.12, 0.45)
+E_MIN = 0.3  # Cycles' single-scatter GGX albedo table stays above this everywhere  # lobe k starts near the k-th: a mirror-like, a glossy and a rough lobe
 
 
 def view_features(cos_i: Tensor) -> Tensor:
@@ -79,9 +81,10 @@ class HybridDecoder(nn.Module):
     bounded = True  # albedo(f_neu) + T <= 1 for every latent: fitting needs no furnace
 
     def __init__(self, lobes: int = 3, width: int = 32, gate_width: int = 32, gate_depth: int = 2,
-                 alpha_floor: float = 1e-3) -> None:
+                 alpha_floor: float = 1e-3, unit_lobes: bool = False) -> None:
         super().__init__()
         self.lobes, self.width, self.gate_width, self.gate_depth = lobes, width, gate_width, gate_depth
+        self.unit_lobes = unit_lobes  # GGX lobes divided by their albedo (Cycles' E table): weights are energies
         # per lobe an alpha logit and F0 rgb; diffuse rgb; slot logits (K + 3); R
         self.head = mlp(LATENT + 3, width, 2, 5 * lobes + 7)
         self.gates = mlp(LATENT + 10, gate_width, gate_depth, 3 * (lobes + 1))
@@ -118,6 +121,8 @@ class HybridDecoder(nn.Module):
         lambda_i = 0.5 * ((1.0 + a2 * sin2_theta(wi) / cos_i.square()).sqrt() - 1.0)
         lambda_o = 0.5 * ((1.0 + a2 * sin2_theta(wo) / cos_o.square()).sqrt() - 1.0)
         single = d / ((1.0 + lambda_i + lambda_o) * 4.0 * cos_i) * lobes.weights[:, :k]  # (N, K)
+        if self.unit_lobes:
+            single = single / tables.ggx_e(lobes.alpha, cos_theta(wi).clamp(0.0, 1.0)).clamp(min=E_MIN)
         schlick = (1.0 - (wi * h).sum(-1, keepdim=True).clamp(0.0, 1.0)) ** 5  # (N, 1)
         fresnel = lobes.f0 + (1.0 - lobes.f0) * schlick[:, :, None]  # (N, K, 3)
         glossy = (single[:, :, None] * fresnel * gates[:, :k]).sum(1)
