@@ -98,13 +98,24 @@ def test_lobe_sampler_matches_its_pdf(cos_i: float) -> None:
     assert result.passed(sidak_threshold(3)), result
 
 
-@pytest.fixture(scope="module")
-def tiny_hybrid(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    folder = tmp_path_factory.mktemp("tiny_hybrid")
+def train_tiny_hybrid(folder: Path, **options: object) -> Path:
+    """A 40-step hybrid run in ``folder``: its weights folder."""
     cfg = folder / "tiny.json"
-    cfg.write_text(json.dumps(dict(TINY, kind="hybrid", steps=40, checkpoint_every=20, lobe_alpha_floor=[0.05, 0.002])))
+    cfg.write_text(json.dumps(dict(TINY, kind="hybrid", steps=40, checkpoint_every=20, lobe_alpha_floor=[0.05, 0.002],
+                                   **options)))
     assert main(["train-decoder", "--config", str(cfg), "--out", str(folder / "run")]) == 0
     return folder / "run"
+
+
+@pytest.fixture(scope="module")
+def tiny_hybrid(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return train_tiny_hybrid(tmp_path_factory.mktemp("tiny_hybrid"))
+
+
+@pytest.fixture(scope="module")
+def tiny_unit_hybrid(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A hybrid whose GGX lobes are divided by their albedo; the E table travels in its weights."""
+    return train_tiny_hybrid(tmp_path_factory.mktemp("tiny_unit_hybrid"), unit_lobes=True)
 
 
 def test_the_weights_folder_names_its_kind(tiny_hybrid: Path, tmp_path: Path) -> None:
@@ -132,3 +143,11 @@ def test_a_bounded_decoder_skips_the_furnace_repair(tiny_hybrid: Path) -> None:
     assert fitted.counts() == {"checked": 64, "passed_as_fitted": 64, "passed_after_refit": 0, "repaired_by_scaling": 0}
     measured = energy.furnace(model, z)  # the real furnace agrees with the bound
     assert not measured.failing.any() and (measured.albedo <= fitted.check.albedo + 2e-3).all()
+
+
+def test_unit_lobes_load_from_their_own_config_and_table(tiny_unit_hybrid: Path) -> None:
+    model = weights.load(tiny_unit_hybrid)
+    assert model.decoder.unit_lobes and model.decoder.ggx_e.shape == (32, 32)
+    z = torch.rand(32, 6, generator=torch.Generator().manual_seed(1)) * 2 - 1
+    sums = quadrature.half_vector_albedo(model, z)
+    assert (sums.reflected.amax(-1) + sums.diffuse <= 1.0 + 2e-3).all()

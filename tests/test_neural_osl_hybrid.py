@@ -12,7 +12,7 @@ from richmat_addon.core.neural_osl import neural_osl_source
 from richmat_addon.core.tensor_file import read_safetensors
 
 from .test_addon_preview import cycles_ball, torch_ball
-from .test_hybrid_decoder import tiny_hybrid  # noqa: F401  (module fixture: a 40-step hybrid run)
+from .test_hybrid_decoder import tiny_hybrid, tiny_unit_hybrid  # noqa: F401  (module fixtures: 40-step hybrid runs)
 
 LATENT = [0.3, -0.5, 0.2, 0.7, -0.1, 0.4]
 BASE = [0.5, 0.3, 0.2]
@@ -52,3 +52,18 @@ def test_cycles_preview_of_the_hybrid_agrees_with_the_torch_renderer(
         c_med, t_med = np.median(cycles[..., :3][ball], 0), np.median(ref.rgb[ball], 0)
         assert np.allclose(c_mean, t_mean, rtol=0.04), (c_mean, t_mean)
         assert np.allclose(c_med, t_med, rtol=0.04), (c_med, t_med)
+
+
+def test_cycles_preview_of_a_unit_lobe_hybrid_agrees_with_the_torch_renderer(
+        tiny_unit_hybrid: Path, blender_run, tmp_path: Path) -> None:  # noqa: F811
+    """The weights' E table reaches the shader (the lobes divided by it as in torch): the lobe alone
+    (a black base) within 4 %; without the division the shader reads 10-20 % dark."""
+    from torch_models.neural.weights import load
+
+    assert "#define UNIT_LOBES 1" in neural_osl_source(read_safetensors(tiny_unit_hybrid / "weights.safetensors"))
+    black = [0.0, 0.0, 0.0]
+    ref = torch_ball(load(tiny_unit_hybrid), LATENT, black, 1.0, 32, 256)
+    cycles = cycles_ball(blender_run, tiny_unit_hybrid, LATENT, black, 8, 32, 128, tmp_path)
+    ball = (cycles[..., 3] > 0.99) & (ref.alpha > 0.99)
+    c_mean, t_mean = cycles[..., :3][ball].mean(0), ref.rgb[ball].mean(0)
+    assert ball.sum() > 200 and np.allclose(c_mean, t_mean, rtol=0.04), (c_mean, t_mean)

@@ -45,6 +45,7 @@ MAX_LOG_F = 12.0  # networks.MAX_LOG_F
 UNIFORM_SHARE = 0.2
 LOG_SLOPE_FLOOR = 1e-10  # networks.LOG_SLOPE_FLOOR
 LOG_ALPHA_MIN = math.log(1e-4)  # hybrid.LOG_ALPHA_MIN
+E_MIN = 0.3  # hybrid.E_MIN
 LUMINANCE = (0.2126, 0.7152, 0.0722)  # brdf.model.LUMINANCE
 # A network's input width names its direction encoding (networks.DIRECTION_ENCODINGS):
 # 6 latents + 10 ("half") or + 11 ("half_log_slope", which appends ln(tan^2 theta_h) / 8).
@@ -242,6 +243,9 @@ void decode(float z[6], float s[STATE], vector wi, vector wo, output color f, ou
             float single = ggx_d(h, a2) / ((1.0 + ggx_lambda(wi, a2) + ggx_lambda(wo, a2)) * 4.0 * cos_i);
             color f0 = color(s[F0S + 3 * k], s[F0S + 3 * k + 1], s[F0S + 3 * k + 2]);
             color gate = color(sigmoid(g[3 * k]), sigmoid(g[3 * k + 1]), sigmoid(g[3 * k + 2]));
+#ifdef UNIT_LOBES
+            single /= max(ggx_e(s[k], cos_i), E_MIN);
+#endif
             f += s[WEIGHTS + k] * single * (f0 + (1.0 - f0) * schlick) * gate;
         }
         color gate = color(sigmoid(g[3 * LOBES]), sigmoid(g[3 * LOBES + 1]), sigmoid(g[3 * LOBES + 2]));
@@ -385,7 +389,30 @@ def _hybrid_parts(tensors: dict[str, np.ndarray]) -> str:
                      WEIGHTS=4 * k + 3, PROBS=5 * k + 6, STATE=6 * k + 7, T_SLOT=5 * k + 4,
                      ALPHA_FLOOR=f"{float(tensors['decoder.alpha_floor']):.9g}", LOG_ALPHA_MIN=f"{LOG_ALPHA_MIN:.9g}",
                      LUM_R=r, LUM_G=g, LUM_B=b)
-            + _mlp_function("head_mlp", head) + _mlp_function("gates_mlp", gates) + _COMMON + _HYBRID)
+            + _unit_lobes(tensors) + _mlp_function("head_mlp", head) + _mlp_function("gates_mlp", gates)
+            + _COMMON + _HYBRID)
+
+
+def _unit_lobes(tensors: dict[str, np.ndarray]) -> str:
+    """The E table of a hybrid whose GGX lobes are divided by their albedo (``decoder.ggx_e``), or nothing."""
+    table = tensors.get("decoder.ggx_e")
+    if table is None:
+        return ""
+    return (_defines(UNIT_LOBES=1, E_SIZE=table.shape[-1], E_MIN=E_MIN) + _GGX_E_HEAD
+            + _array("GGX_E", np.asarray(table, np.float32).reshape(-1)) + _GGX_E_BODY)
+
+
+# tables.lookup of the weights' own E table at (sqrt alpha, mu): bilinear, node-centred, clamped;
+# the first coordinate indexes the table's last axis
+_GGX_E_HEAD = "float ggx_e(float alpha, float mu)\n{\n"
+_GGX_E_BODY = r"""    float x = clamp(sqrt(alpha), 0.0, 1.0) * (E_SIZE - 1), y = clamp(mu, 0.0, 1.0) * (E_SIZE - 1);
+    int x0 = min(int(floor(x)), E_SIZE - 1), y0 = min(int(floor(y)), E_SIZE - 1);
+    int x1 = min(x0 + 1, E_SIZE - 1), y1 = min(y0 + 1, E_SIZE - 1);
+    float fx = x - x0, fy = y - y0;
+    return (1.0 - fy) * ((1.0 - fx) * GGX_E[y0 * E_SIZE + x0] + fx * GGX_E[y0 * E_SIZE + x1])
+        + fy * ((1.0 - fx) * GGX_E[y1 * E_SIZE + x0] + fx * GGX_E[y1 * E_SIZE + x1]);
+}
+"""
 
 
 def neural_osl_source(tensors: dict[str, np.ndarray]) -> str:

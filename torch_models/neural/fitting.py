@@ -28,7 +28,7 @@ def fitting_pool(model: NeuralModel, vectors: np.ndarray) -> Tensor:
 
 def fitting_loss(model: NeuralModel, z: Tensor, batch: Batch) -> Tensor:
     """The loss ``model`` was trained with (its relative term included), which fitting minimises."""
-    return decoder_loss(model.decoder, z, batch, relative_weight=model.relative_weight)
+    return decoder_loss(model.decoder, z, batch, relative_weight=model.relative_weight, t_weight=model.t_weight)
 
 
 def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int = FIT_BATCH, seed: int = 0,

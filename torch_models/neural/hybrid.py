@@ -84,7 +84,10 @@ class HybridDecoder(nn.Module):
                  alpha_floor: float = 1e-3, unit_lobes: bool = False) -> None:
         super().__init__()
         self.lobes, self.width, self.gate_width, self.gate_depth = lobes, width, gate_width, gate_depth
-        self.unit_lobes = unit_lobes  # GGX lobes divided by their albedo (Cycles' E table): weights are energies
+        self.unit_lobes = unit_lobes
+        if unit_lobes:  # each GGX lobe divided by its albedo, so slot weights are energies; the table
+            # (Cycles' E(sqrt alpha, mu)) travels in the weights file, so the preview shader reads the same one
+            self.register_buffer("ggx_e", tables.table("ggx_E", torch.device("cpu"), torch.float32).clone())
         # per lobe an alpha logit and F0 rgb; diffuse rgb; slot logits (K + 3); R
         self.head = mlp(LATENT + 3, width, 2, 5 * lobes + 7)
         self.gates = mlp(LATENT + 10, gate_width, gate_depth, 3 * (lobes + 1))
@@ -122,7 +125,7 @@ class HybridDecoder(nn.Module):
         lambda_o = 0.5 * ((1.0 + a2 * sin2_theta(wo) / cos_o.square()).sqrt() - 1.0)
         single = d / ((1.0 + lambda_i + lambda_o) * 4.0 * cos_i) * lobes.weights[:, :k]  # (N, K)
         if self.unit_lobes:
-            single = single / tables.ggx_e(lobes.alpha, cos_theta(wi).clamp(0.0, 1.0)).clamp(min=E_MIN)
+            single = single / tables.lookup(self.ggx_e, lobes.alpha.sqrt(), cos_theta(wi).clamp(0.0, 1.0)).clamp(min=E_MIN)
         schlick = (1.0 - (wi * h).sum(-1, keepdim=True).clamp(0.0, 1.0)) ** 5  # (N, 1)
         fresnel = lobes.f0 + (1.0 - lobes.f0) * schlick[:, :, None]  # (N, K, 3)
         glossy = (single[:, :, None] * fresnel * gates[:, :k]).sum(1)

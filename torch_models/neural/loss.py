@@ -27,7 +27,7 @@ CHROMA_WEIGHT = 10.0
 
 
 def decoder_loss(dec: AnyDecoder, z: Tensor, batch: Batch, chroma_weight: float = CHROMA_WEIGHT,
-                 relative_weight: float = 0.0) -> Tensor:
+                 relative_weight: float = 0.0, t_weight: float = LOSS_WEIGHTS[1]) -> Tensor:
     """The training (and fitting) loss of latents z against a batch of analytic targets.
 
     ``relative_weight`` adds L1 in log(RELATIVE_EPS + f cos): log(1 + f cos) weighs an
@@ -42,7 +42,8 @@ def decoder_loss(dec: AnyDecoder, z: Tensor, batch: Batch, chroma_weight: float 
     if relative_weight:
         relative = (RELATIVE_EPS + f_cos(y)).log() - (RELATIVE_EPS + target).log()
         f_loss = f_loss + relative_weight * relative.abs().mean()
-    wf, wt, wr = LOSS_WEIGHTS
+    wf, _, wr = LOSS_WEIGHTS
+    wt = t_weight
     return wf * f_loss + wt * (t - batch.t).abs().mean() + wr * (r - batch.r).abs().mean()
 
 

@@ -43,7 +43,7 @@ from ..distributed import data_parallel, placement
 from .data import Batch, angular_floor, make_batch, parameter_vectors
 from .decoders import AnyDecoder, build_decoder, build_sampler
 from .hybrid import HybridDecoder
-from .loss import CHROMA_WEIGHT, albedo_loss, decoder_loss, energy_penalty, sampler_loss
+from .loss import CHROMA_WEIGHT, LOSS_WEIGHTS, albedo_loss, decoder_loss, energy_penalty, sampler_loss
 from .networks import Encoder, SamplingDecoder, saturation
 from .validity import enlarged
 from .weights import load_networks
@@ -66,6 +66,7 @@ class TrainConfig:
     pool: int = 20_000  # distinct parameter vectors drawn from the enhancement rules
     alpha_floor: float = 0.0  # GGX alphas below this are trained (and fitted) as this (data.angular_floor)
     relative_weight: float = 0.0  # decoder_loss's relative term, in training and in fitting
+    t_weight: float = LOSS_WEIGHTS[1]  # decoder_loss's weight of T; a hybrid's T shares the lobes' budget
     buffer_batches: int = 8  # batches kept in memory, refreshed one at a time
     refresh_every: int = 4  # training steps per newly generated batch
     batch: int = 16_384
@@ -125,7 +126,7 @@ class Objective(nn.Module):
         pre = self.encoder.pre_activation(batch.vectors)
         z = torch.tanh(pre)
         z = z + cfg.jitter * (2 * torch.rand(z.shape, generator=gen) - 1).to(z.device)
-        loss = (decoder_loss(self.decoder, z, batch, cfg.chroma_weight, cfg.relative_weight)
+        loss = (decoder_loss(self.decoder, z, batch, cfg.chroma_weight, cfg.relative_weight, cfg.t_weight)
                 + cfg.saturation_weight * saturation(pre))
         if cfg.albedo_weight:
             k = cfg.albedo_materials

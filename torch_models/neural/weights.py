@@ -9,6 +9,7 @@ from pathlib import Path
 from safetensors.torch import load_file
 from torch import nn
 
+from .loss import LOSS_WEIGHTS
 from .decoders import AnyDecoder, AnySampler, build_decoder, build_sampler
 from .networks import Encoder
 
@@ -23,6 +24,7 @@ class NeuralModel:
     digest: str  # sha256 of the weights file: which decoder a fitted material belongs to
     alpha_floor: float = 0.0  # the training's angular floor, which fitting must apply too
     relative_weight: float = 0.0  # the training loss's relative term, which fitting uses too
+    t_weight: float = LOSS_WEIGHTS[1]  # the training loss's weight of T, which fitting uses too
 
 
 def digest(folder: Path = SHIPPED) -> str:
@@ -65,4 +67,4 @@ def load(folder: Path = SHIPPED) -> NeuralModel:
     for net in nets.values():
         net.eval().requires_grad_(False)
     return NeuralModel(nets["encoder"], decoder, sampler, digest(folder),
-                       cfg.get("alpha_floor", 0.0), cfg.get("relative_weight", 0.0))
+                       cfg.get("alpha_floor", 0.0), cfg.get("relative_weight", 0.0), cfg.get("t_weight", LOSS_WEIGHTS[1]))
