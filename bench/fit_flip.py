@@ -19,7 +19,6 @@ Targets: every type median <= 0.05 and worst <= 0.12 (the hybrid's: 0.04 / 0.10)
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -32,7 +31,7 @@ sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
 from agreement_cases import cases  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
-from provenance import provenance  # noqa: E402
+from common import add_weights_argument, provenance, pyplot, weights_folders, write_report  # noqa: E402
 from richmat_addon.core.enhancement_types import TYPES  # noqa: E402
 from richmat_addon.core.schema import CHANNEL_SLICES  # noqa: E402
 from torch_models.neural.evaluate import BallSetup, fit_and_compare, reference_furnace, render_reference, side_by_side  # noqa: E402
@@ -90,13 +89,12 @@ def main() -> None:
     parser.add_argument("--per-type", type=int, default=50)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "fit_flip.json")
-    parser.add_argument("--weights", type=Path, action="append",
-                        help="a decoder's weights folder; repeat to compare decoders (default: the shipped one)")
+    add_weights_argument(parser)
     parser.add_argument("--steps", type=int, default=400, help="fit steps (all materials fitted together)")
     parser.add_argument("--resolution", type=int, default=128)
     parser.add_argument("--spp", type=int, default=64)
     args = parser.parse_args()
-    folders = args.weights or [weights.SHIPPED]
+    folders = weights_folders(args)
 
     start = time.perf_counter()
     drawn = cases(args.seed, args.per_type, 0)
@@ -124,18 +122,14 @@ def main() -> None:
               "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
               "reference_over_tolerance": int((reference > 1 + QUADRATURE_TOLERANCE).sum()),
               "wall_seconds": time.perf_counter() - start, "decoders": decoders}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1))
+    write_report(args.out, report)
     chart(report, args.out.with_suffix(".png"))
     Image.fromarray(np.concatenate(worst_sheets, 1)).save(args.out.with_name(args.out.stem + "_worst.png"))
     sys.exit(0 if all(d["all_passed"] for d in decoders) else 1)
 
 
 def chart(report: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     decoders = report["decoders"]
     fig, ax = plt.subplots(figsize=(10, 4.5))

@@ -16,7 +16,6 @@ scales the seconds to all (marked ``extrapolated``), so a run stays short.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import time
@@ -28,7 +27,7 @@ import torch
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
-from provenance import provenance  # noqa: E402
+from common import add_weights_argument, provenance, pyplot, weights_folders, write_report  # noqa: E402
 from tests.conftest import SHARED_ASSETS  # noqa: E402
 from torch_models.cli import main as cli  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
@@ -70,11 +69,10 @@ def main() -> None:
     parser.add_argument("--type", default="2", help="enhancement type for every material (default: 2)")
     parser.add_argument("--steps", type=int, default=ADDON_FIT_STEPS)
     parser.add_argument("--furnace-sample", type=int, default=512, help="unique vectors the MLP's furnace is timed on")
-    parser.add_argument("--weights", type=Path, action="append",
-                        help="a decoder's weights folder; repeat to compare decoders (default: the shipped one)")
+    add_weights_argument(parser)
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "fit_full_size.json")
     args = parser.parse_args()
-    folders = args.weights or [weights.SHIPPED]
+    folders = weights_folders(args)
     models = [weights.load(f) for f in folders]
 
     rows = []
@@ -98,16 +96,12 @@ def main() -> None:
                           f"{stages['total_seconds']:.1f} s", flush=True)
     report = {"steps": args.steps, "type": args.type, "threads": torch.get_num_threads(),
               "target_seconds": TARGET_SECONDS, "provenance": provenance(folders), "materials": rows}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1))
+    write_report(args.out, report)
     chart(report, args.out.with_suffix(".png"))
 
 
 def chart(report: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     rows = report["materials"]
     labels = [f"{r['asset']}/{r['material']}\n{r['kind']}, {r['shape'][0]}x{r['shape'][1] if len(r['shape']) > 1 else 1}"

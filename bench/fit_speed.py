@@ -23,7 +23,6 @@ ratios, not the absolute seconds.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -35,7 +34,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
 from agreement_cases import cases  # noqa: E402
-from provenance import provenance  # noqa: E402
+from common import add_weights_argument, provenance, pyplot, weights_folders, write_report  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference  # noqa: E402
 from torch_models.neural.fitting import FIT_BATCH, fit_latents  # noqa: E402
@@ -122,11 +121,10 @@ def main() -> None:
     parser.add_argument("--per-type", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats per variant (median)")
-    parser.add_argument("--weights", type=Path, action="append",
-                        help="a decoder's weights folder; repeat to compare decoders (default: the shipped one)")
+    add_weights_argument(parser)
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "fit_speed.json")
     args = parser.parse_args()
-    folders = args.weights or [weights.SHIPPED]
+    folders = weights_folders(args)
 
     drawn = cases(args.seed + 7, args.per_type, 0)
     vectors = np.stack([c.vector() for c in drawn])
@@ -163,16 +161,12 @@ def main() -> None:
     report = {"seed": args.seed, "materials": len(drawn), "provenance": provenance(folders), "fit_batch": FIT_BATCH,
               "repeats": args.repeats, "threads": threads, "matmul_peak_flops_per_second": peak,
               "shading_directions": SHADING_DIRECTIONS, "decoders": decoders}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1))
+    write_report(args.out, report)
     chart(report, args.out.with_suffix(".png"))
 
 
 def chart(report: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.5))
     for d, colour in zip(report["decoders"], plt.cm.tab10.colors):

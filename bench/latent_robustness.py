@@ -20,7 +20,6 @@ encoder's box). Target: 100 % valid in both sets as the tool renders them
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -32,7 +31,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
 from agreement_cases import cases  # noqa: E402
-from provenance import provenance  # noqa: E402
+from common import add_weights_argument, provenance, pyplot, weights_folders, write_report  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference  # noqa: E402
 from torch_models.neural.fitting import fit_latents  # noqa: E402
@@ -89,11 +88,10 @@ def main() -> None:
     parser.add_argument("--count", type=int, default=5000, help="uniform latents in set (a) (default: 5000)")
     parser.add_argument("--per-type", type=int, default=4, help="fitted materials per type in set (b) (default: 4)")
     parser.add_argument("--steps", type=int, default=400, help="fit steps for set (b)")
-    parser.add_argument("--weights", type=Path, action="append",
-                        help="a decoder's weights folder; repeat to compare decoders (default: the shipped one)")
+    add_weights_argument(parser)
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "latent_robustness.json")
     args = parser.parse_args()
-    folders = args.weights or [weights.SHIPPED]
+    folders = weights_folders(args)
 
     start = time.perf_counter()
     drawn = cases(args.seed + 1, args.per_type, 0)
@@ -107,8 +105,7 @@ def main() -> None:
         albedos.append((albedo_a, albedo_b))
     report = {"seed": args.seed, "noise": NOISE, "box_enlargement": ENLARGE, "provenance": provenance(folders),
               "decoders": decoders, "wall_seconds": time.perf_counter() - start}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1))
+    write_report(args.out, report)
     chart(report, albedos, args.out.with_suffix(".png"))
     sys.exit(0 if all(d["passed"] for d in decoders) else 1)
 
@@ -121,10 +118,7 @@ def raw_and_guarded(model: weights.NeuralModel, z: torch.Tensor, seed: int) -> t
 
 
 def chart(report: dict, albedos: list[tuple[np.ndarray, np.ndarray]], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     decoders = report["decoders"]
     fig, axes = plt.subplots(len(decoders), 2, figsize=(10, 3.6 * len(decoders)), squeeze=False)

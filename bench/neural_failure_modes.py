@@ -32,7 +32,6 @@ of each decoder's worst sweep point).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -45,7 +44,7 @@ import torch
 REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
-from provenance import provenance  # noqa: E402
+from common import add_weights_argument, provenance, pyplot, weights_folders, write_report  # noqa: E402
 from richmat_addon.core.enhance import enhance  # noqa: E402
 from richmat_addon.core.maps import ParamMap, PbrInputs  # noqa: E402
 from richmat_addon.core.preview import PreviewScene  # noqa: E402
@@ -184,12 +183,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--quick", action="store_true", help="fewer points, smaller and noisier balls (< 2 min)")
-    parser.add_argument("--weights", type=Path, action="append",
-                        help="a decoder's weights folder; repeat to compare decoders (default: the shipped one)")
+    add_weights_argument(parser)
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "neural_failure_modes.json")
     parser.add_argument("--steps", type=int, help="fit steps (all sweep points fitted together)")
     args = parser.parse_args()
-    folders = args.weights or [weights.SHIPPED]
+    folders = weights_folders(args)
     # Full: 200 x 4096 samples give each of the 27 points ~30 k, more than fit_flip.py gives each of its 300.
     resolution, spp, steps, batch, albedo_n = (64, 16, 20, 1024, 512) if args.quick else (96, 32, 200, 4096, 4096)
     steps = args.steps or steps
@@ -210,17 +208,13 @@ def main() -> None:
               "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
               "base_color": points[0].base_color.tolist(), "decoders": decoders,
               "wall_seconds": time.perf_counter() - start}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1))
+    write_report(args.out, report)
     chart(report, worst, args.out.with_suffix(".png"))
     print(f"{report['wall_seconds']:.0f} s")
 
 
 def chart(report: dict, worst: list[Comparison], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     decoders = report["decoders"]
     fig = plt.figure(figsize=(13, 4.2 + 2.6 * len(decoders)))

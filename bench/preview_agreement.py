@@ -35,7 +35,7 @@ sys.path[:0] = [str(REPO), str(REPO / "bench")]
 
 from agreement import contact_sheet  # noqa: E402
 from agreement_cases import cases  # noqa: E402
-from provenance import provenance  # noqa: E402
+from common import add_weights_argument, provenance, weights_folders, write_report  # noqa: E402
 from richmat_addon.core.schema import CHANNEL_SLICES  # noqa: E402
 from torch_models.neural import weights  # noqa: E402
 from torch_models.neural.bsdf import NeuralBsdf  # noqa: E402
@@ -146,15 +146,14 @@ def measure(folder: Path, setup: BallSetup, args: argparse.Namespace, sheet: lis
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--weights", type=Path, action="append",
-                        help="a weights folder; repeat to compare several (default: the shipped one)")
+    add_weights_argument(parser)
     parser.add_argument("--resolution", type=int, default=48)
     parser.add_argument("--spp", type=int, default=1024, help="torch renderer samples per pixel")
     parser.add_argument("--cycles-spp", type=int, default=384)
     parser.add_argument("--directions", type=int, default=8, help="shader directions per shading point")
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "preview_agreement.json")
     args = parser.parse_args()
-    folders = args.weights or [weights.SHIPPED]
+    folders = weights_folders(args)
 
     start = time.perf_counter()
     setup = BallSetup.default(args.resolution, args.spp, 0)
@@ -165,8 +164,7 @@ def main() -> None:
               "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
               "target": TARGET, "passed": all(r["passed"] for r in runs), "runs": runs,
               "wall_seconds": time.perf_counter() - start}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1))
+    write_report(args.out, report)
     contact_sheet(sheet, args.out.with_suffix(".png"))
     for r in runs:
         print(f"{r['kind']} {r['weights']}: mean FLIP {r['mean_flip']:.4f} (target {TARGET}), "

@@ -2,7 +2,7 @@
 
 A report is a file under docs/reports/ (JSON, or a chart). A cited JSON report must
 record the decoder weights it used: new reports carry a ``provenance`` block
-(bench/provenance.py: git commit, command, date, machine, ``decoder_sha256`` per
+(bench/common.py: git commit, command, date, machine, ``decoder_sha256`` per
 weights folder, ``generator_sha256`` when a generator checkpoint was used); older ones
 a top-level ``decoder_sha256`` only. The weights must be the shipped decoder's
 (torch_models/neural/weights/weights.safetensors; with several decoders the shipped

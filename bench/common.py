@@ -1,14 +1,16 @@
-"""What every bench report records about how it was made.
+"""What every bench report shares: its provenance, how it is written, how its charts start.
 
-The git commit (and whether the tree had uncommitted changes), the command line,
-the date, the machine, and the sha256 of each decoder and generator weights file
-the report used, so a number quoted in the docs can be traced to the code and
+A report records the git commit (and whether the tree had uncommitted changes), the
+command line, the date, the machine, and the sha256 of each decoder and generator
+weights file it used, so a number quoted in the docs can be traced to the code and
 weights that produced it.
 """
 from __future__ import annotations
 
+import argparse
 import datetime
 import hashlib
+import json
 import os
 import platform
 import shlex
@@ -43,3 +45,32 @@ def provenance(decoders: list[Path] = (), generator: Path | None = None) -> dict
     if generator is not None:
         out["generator_sha256"] = file_sha256(generator)
     return out
+
+
+def write_report(out: Path, report: dict) -> None:
+    """The report as indented JSON, its folder made if missing."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(report, indent=1))
+
+
+def pyplot():  # type: ignore[no-untyped-def]
+    """matplotlib.pyplot on the file-only Agg backend (benches run headless)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def add_weights_argument(parser: argparse.ArgumentParser) -> None:
+    """``--weights``, repeatable: the decoders a bench measures side by side on the same inputs."""
+    parser.add_argument("--weights", type=Path, action="append",
+                        help="a decoder's weights folder; repeat to compare decoders (default: the shipped one)")
+
+
+def weights_folders(args: argparse.Namespace) -> list[Path]:
+    """The folders ``--weights`` named, or the shipped decoder's."""
+    from torch_models.neural import weights
+
+    return args.weights or [weights.SHIPPED]
