@@ -78,13 +78,16 @@ class HybridDecoder(nn.Module):
     energy-bounded by construction."""
 
     kind = "hybrid"
-    bounded = True  # albedo(f_neu) + T <= 1 for every latent: fitting needs no furnace
+    bounded = True  # albedo(f_neu) + T <= 1 for every latent: fitting needs no furnace (see unit_lobes)
 
     def __init__(self, lobes: int = 3, width: int = 32, gate_width: int = 32, gate_depth: int = 2,
                  alpha_floor: float = 1e-3, unit_lobes: bool = False) -> None:
         super().__init__()
         self.lobes, self.width, self.gate_width, self.gate_depth = lobes, width, gate_width, gate_depth
         self.unit_lobes = unit_lobes
+        # Divided by a bilinear table, a lobe's albedo can exceed 1 by the table's error (0.6 % at most,
+        # measured): such a decoder is bounded only approximately and goes through the furnace like the MLP.
+        self.bounded = not unit_lobes
         if unit_lobes:  # each GGX lobe divided by its albedo, so slot weights are energies; the table
             # (Cycles' E(sqrt alpha, mu)) travels in the weights file, so the preview shader reads the same one
             self.register_buffer("ggx_e", tables.table("ggx_E", torch.device("cpu"), torch.float32).clone())
