@@ -5,8 +5,8 @@ T times a white Lambertian, by a half-vector quadrature and by Monte Carlo); one
 that exceeds 1 is fitted again under an albedo penalty, and what still exceeds 1
 (the Monte Carlo estimate beyond 3 sigma) gets an energy scale < 1 for its f_neu,
 recorded in ``neural.json``. A decoder that is bounded by construction
-(``decoder.bounded``, the hybrid) skips both: its fits and generated latents pass
-as they are, and ``furnace`` stays a measurement.
+(``decoder.bounded``: the hybrid without unit lobes) skips both: its fits and
+generated latents pass as they are, and ``furnace`` stays a measurement.
 """
 from __future__ import annotations
 
@@ -185,15 +185,16 @@ def _refit(model: NeuralModel, vectors: np.ndarray, z0: Tensor, steps: int, seed
 
 
 def bound_furnace(model: NeuralModel, z: Tensor) -> Furnace:
-    """The furnace of a decoder bounded by construction, read off its lobe weights: at each of
-    ``VIEW_COSINES`` the albedo is at most the weight of every slot but the absorbed one, and
-    T is the transmitted slot's. Exact bounds, no samples (standard errors 0)."""
+    """The furnace of a decoder bounded by construction, read off its head's slot weights: at each
+    of ``VIEW_COSINES`` the albedo is at most the weight of every slot but the absorbed one, and T
+    is the transmitted slot's. Exact bounds, no samples (standard errors 0)."""
+    dec = model.decoder
     rows, ts = [], []
     with torch.no_grad():
         for mu in VIEW_COSINES:
-            wi = view_directions(torch.full((len(z), 1), mu))
-            rows.append(model.decoder.albedo_bound(z, wi))
-            ts.append(model.decoder(z, wi, wi)[1][:, 0])
+            weights = dec.head_at(z, view_directions(torch.full((len(z), 1), mu))).weights
+            rows.append(weights[:, :-1].sum(-1))
+            ts.append(weights[:, dec.lobes + 1])
     bound = torch.stack(rows, 1).clamp(max=1.0)  # < 1 exactly; a float32 softmax sums to 1 +- rounding
     return Furnace(bound, torch.zeros_like(bound), torch.stack(ts, 1), bound.clone())
 

@@ -78,15 +78,15 @@ class HybridDecoder(nn.Module):
     energy-bounded by construction."""
 
     kind = "hybrid"
-    bounded = True  # albedo(f_neu) + T <= 1 for every latent: fitting needs no furnace (see unit_lobes)
 
     def __init__(self, lobes: int = 3, width: int = 32, gate_width: int = 32, gate_depth: int = 2,
                  alpha_floor: float = 1e-3, unit_lobes: bool = False) -> None:
         super().__init__()
         self.lobes, self.width, self.gate_width, self.gate_depth = lobes, width, gate_width, gate_depth
         self.unit_lobes = unit_lobes
-        # Divided by a bilinear table, a lobe's albedo can exceed 1 by the table's error (0.6 % at most,
-        # measured): such a decoder is bounded only approximately and goes through the furnace like the MLP.
+        # albedo(f_neu) + T <= 1 for every latent, so fitting needs no furnace; divided by a bilinear
+        # table, a lobe's albedo can exceed 1 by the table's error (0.6 % at most, measured), so a
+        # unit-lobe decoder is bounded only approximately and goes through the furnace like the MLP.
         self.bounded = not unit_lobes
         if unit_lobes:  # each GGX lobe divided by its albedo, so slot weights are energies; the table
             # (Cycles' E(sqrt alpha, mu)) travels in the weights file, so the preview shader reads the same one
@@ -177,9 +177,8 @@ class LobeSampler:
         """u (N, 3): u[:, 0] picks the component, u[:, 1:] samples it."""
         p, alpha = self.components(latent, wi)
         k = alpha.shape[1]
-        choice = (u[:, :1] >= p.cumsum(-1)).sum(-1).clamp(max=k)
+        choice = (u[:, :1] >= p.cumsum(-1)).sum(-1, keepdim=True).clamp(max=k)  # (N, 1); k is the diffuse lobe
+        glossy = ggx_sample(wi, alpha.gather(1, choice.clamp(max=k - 1)), u[:, 1:3])
         r, phi = u[:, 1:2].sqrt(), 2.0 * math.pi * u[:, 2:3]
-        out = torch.cat([r * phi.cos(), r * phi.sin(), (1.0 - u[:, 1:2]).clamp(min=0.0).sqrt()], -1)
-        for j in range(k):
-            out = torch.where((choice == j)[:, None], ggx_sample(wi, alpha[:, j:j + 1], u[:, 1:3]), out)
-        return out
+        cosine = torch.cat([r * phi.cos(), r * phi.sin(), (1.0 - u[:, 1:2]).clamp(min=0.0).sqrt()], -1)
+        return torch.where(choice < k, glossy, cosine)
