@@ -43,8 +43,7 @@ def decoder_loss(dec: AnyDecoder, z: Tensor, batch: Batch, chroma_weight: float 
         relative = (RELATIVE_EPS + f_cos(y)).log() - (RELATIVE_EPS + target).log()
         f_loss = f_loss + relative_weight * relative.abs().mean()
     wf, _, wr = LOSS_WEIGHTS
-    wt = t_weight
-    return wf * f_loss + wt * (t - batch.t).abs().mean() + wr * (r - batch.r).abs().mean()
+    return wf * f_loss + t_weight * (t - batch.t).abs().mean() + wr * (r - batch.r).abs().mean()
 
 
 def sampler_loss(sampler: SamplingDecoder, dec: AnyDecoder, z: Tensor, wi: Tensor, u: Tensor) -> Tensor:
