@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from richmat_addon.core.gltf_materials import (GltfError, load_gltf, read_materials,
-                                               srgb_to_linear)
+from richmat_addon.core.colour import srgb_to_linear
+from richmat_addon.core.gltf_materials import GltfError, load_gltf, read_materials
 from richmat_addon.core.gltf_mesh import read_geometry
 from richmat_addon.core import uv_raster
 from richmat_addon.core.uv_raster import rasterize

@@ -34,6 +34,7 @@ from urllib.parse import unquote
 
 import numpy as np
 
+from .colour import srgb_to_linear
 from .maps import ParamMap, PbrInputs
 
 ImageDecoder = Callable[[bytes, str], np.ndarray]
@@ -327,12 +328,6 @@ class GltfMaterial:
     def placement(self) -> TextureRef | None:
         """The slot whose UV set and transform define the material's texture space."""
         return self.textures.get("base_color") or self.textures.get("metallic_roughness")
-
-
-def srgb_to_linear(x: np.ndarray) -> np.ndarray:
-    """The sRGB electro-optical transfer function (IEC 61966-2-1), float in, float out."""
-    x = np.asarray(x, dtype=np.float32)
-    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
 _SRGB_LUT = srgb_to_linear(np.arange(256) / 255.0)

@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from richmat_addon.core.enhance import METALLIC_THRESHOLD, is_metallic
-from richmat_addon.core.gltf_materials import read_uri, srgb_to_linear
+from richmat_addon.core.colour import srgb_to_linear
+from richmat_addon.core.gltf_materials import read_uri
 from richmat_addon.core.maps import PbrInputs
 
 from .views import Mesh
