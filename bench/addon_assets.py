@@ -4,46 +4,49 @@ Builds the extension exactly as the tests do (``make extension``), installs the
 zip into the pip bpy module with a temporary BLENDER_USER_RESOURCES and, per
 asset in its own Blender process, imports the glTF and runs every operator on
 every mesh (every material slot), recording per step: ok or the error messages,
-wall seconds, the files written and a small Cycles render of the asset lit by
-the preview probe (the world the neural preview's lobe sees). The fit step's
-render shows latent texture 0 on the asset (0.5 + 0.25 z as colour); Export
-changes nothing visible and has no render.
+wall seconds, the files written and a Cycles render of the asset lit by the
+preview probe (the world the neural preview's lobe sees). The fit step's render
+shows latent texture 0 on the asset (0.5 + 0.25 z as colour); Export changes
+nothing visible and has no render.
 
-    python bench/addon_assets.py [--assets WaterBottle ...] [--steps 100] [--size 192] [--samples 16]
-        [--texture-size 256]
-        [--out docs/reports/addon_assets.json] [--sheet-asset WaterBottle] [--sheet docs/reports/addon_steps.png]
+The neural preview is judged against the Bake render, the analytic material it
+compresses, under the same camera and light: the report holds their mean FLIP
+over the asset's pixels, and the step sheet shows one row per asset with Bake
+and Preview side by side and the FLIP map beside them.
+
+    python -m bench.addon_assets [--assets WaterBottle ...] [--steps 100] [--size 320] [--samples 16]
+        [--texture-size 256] [--out docs/reports/addon_assets.json] [--sheet docs/reports/addon_steps.png]
 
 The asset's images are scaled down to ``--texture-size`` texels first (default
 256; 0 keeps them): Bake writes maps at the input textures' resolution and the
 fit's cost grows with them, and the full 1K-2K maps take tens of minutes per
 material on a shared 2-core machine. Every step still runs on the real meshes,
-materials and texture content.
-
-The report is rewritten after each asset, and a run with ``--merge`` keeps the
-assets it does not run, so assets can run in separate (also concurrent) runs;
-each asset records its settings.
+materials and texture content. The report is rewritten after each asset.
 """
 from __future__ import annotations
 
 import argparse
-import json
+import hashlib
 import os
-import sys
 import tempfile
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO)]
-
-from tests.conftest import SHARED_ASSETS, run_blender  # noqa: E402
-from tests.test_addon_extension import build_extension, script  # noqa: E402
-from torch_models.neural.evaluate import DEFAULT_PROBE  # noqa: E402
+from bench.common import REPO, provenance, pyplot, write_report
+from tests.conftest import SHARED_ASSETS, run_blender
+from tests.test_addon_extension import build_extension, script
+from torch_models.neural import weights
+from torch_models.neural.evaluate import DEFAULT_PROBE
+from torch_models.render.flip import flip_map
 
 ASSETS = ("WaterBottle", "CesiumMilkTruck", "FlightHelmet")
-STEPS = ("original", "uplift", "bake", "fit", "preview", "export")
+# The step sheet's columns: a step's render (or "flip", the Bake vs Preview map) and its title.
+# Preview sits beside Bake, its reference; the latents, which only show where the fit varies, go last.
+SHEET_COLUMNS = (("original", "as imported"), ("uplift", "1 Uplift"), ("bake", "2 Bake: analytic"),
+                 ("preview", "4 Preview: neural"), ("flip", "FLIP Bake vs Preview"), ("fit", "3 Fit: latent 0"))
 
 PIPELINE = r'''
 import math
@@ -94,6 +97,19 @@ def render_png(name):
     scene.render.filepath = str(RENDERS / f"{name}.png")
     bpy.ops.render.render(write_still=True)
     return scene.render.filepath, time.perf_counter() - t
+
+
+def render_mask():
+    """The asset's pixels as the alpha of a one-sample render on a transparent film."""
+    cycles = scene.cycles
+    saved = scene.render.film_transparent, cycles.samples, cycles.use_denoising
+    scene.render.film_transparent, cycles.samples, cycles.use_denoising = True, 1, False
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.image_settings.color_mode = "RGBA"
+    scene.render.filepath = str(RENDERS / "mask.png")
+    bpy.ops.render.render(write_still=True)
+    scene.render.film_transparent, cycles.samples, cycles.use_denoising = saved
+    return scene.render.filepath
 
 
 def latent_view(enhanced):
@@ -163,7 +179,8 @@ def fit_all():
                 continue
             record = neural_folder.read(Path(enhanced.richmat.neural_dir)).record
             details[enhanced.name].update({k: record.get(k) for k in (
-                "texels", "exact_unique_vectors", "fitted_vectors", "final_loss", "furnace")})
+                "texels", "exact_unique_vectors", "fitted_vectors", "encoder_only", "steps", "refit_steps", "final_loss",
+                "furnace", "decoder_sha256")})
     return errors, details
 
 
@@ -198,6 +215,7 @@ def step(name, action, render=render_png):
                   bytes=sum((OUT / f).stat().st_size for f in written), details=details)
     if name == "original":
         frame_camera()
+        record["mask"] = render_mask()
     if render is not None:
         record["render"], record["render_seconds"] = render(name)
     records.append(record)
@@ -230,57 +248,99 @@ def run_asset(name: str, zip_path: Path, folder: Path, args: argparse.Namespace)
     return result
 
 
-def contact_sheet(record: dict, renders: Path, path: Path) -> None:
-    """One row of the step renders of an asset, each labelled with its step and seconds."""
-    from PIL import Image, ImageDraw
+def read_png(path: Path) -> np.ndarray:
+    """An 8-bit PNG as floats in [0, 1] (H, W, channels)."""
+    from PIL import Image
 
-    tiles = []
-    for r in record["records"]:
-        if "render" not in r:
-            continue
-        tile = Image.open(renders / Path(r["render"]).name).convert("RGB")
-        label = f"{r['step']} ({r['seconds']:.0f} s)" if r["ok"] else f"{r['step']}: ERROR"
-        draw = ImageDraw.Draw(tile)
-        draw.rectangle((0, 0, tile.width, 14), fill=(0, 0, 0))
-        draw.text((4, 2), label, fill=(255, 255, 255))
-        tiles.append(np.asarray(tile))
+    return np.asarray(Image.open(path), np.float32) / 255
+
+
+def step_images(record: dict, renders: Path) -> dict[str, np.ndarray]:
+    """The renders of an asset by step, plus ``flip``, the per-pixel FLIP of Preview against Bake
+    (the analytic material the neural one compresses), zero off the asset."""
+    images = {r["step"]: read_png(renders / Path(r["render"]).name) for r in record["records"] if "render" in r}
+    mask = read_png(renders / "mask.png")[..., 3] > 0.5
+    if "bake" in images and "preview" in images:
+        error, _ = flip_map(images["bake"], images["preview"])
+        images["flip"] = np.where(mask, error, 0.0)
+        record["preview_flip_vs_bake"] = float(error[mask].mean())
+        record["asset_pixels"] = int(mask.sum())
+    return images
+
+
+def step_sheet(rows: dict[str, tuple[dict, dict[str, np.ndarray]]], path: Path) -> None:
+    """One row per asset, one labelled column per step (SHEET_COLUMNS), seconds in each title."""
+    plt = pyplot()
+    fig, axes = plt.subplots(len(rows), len(SHEET_COLUMNS), figsize=(3.4 * len(SHEET_COLUMNS), 3.8 * len(rows)),
+                             squeeze=False, layout="constrained")
+    for row, (asset, (record, images)) in zip(axes, rows.items()):
+        steps = {r["step"]: r for r in record["records"]}
+        for ax, (key, title) in zip(row, SHEET_COLUMNS):
+            ax.set_xticks([]), ax.set_yticks([])
+            if key == "flip":
+                if "flip" in images:
+                    ax.imshow(images["flip"], cmap="magma", vmin=0, vmax=1)
+                    title = f"{title}\nmean {record['preview_flip_vs_bake']:.3f} on the asset"
+                ax.set_title(title, fontsize=10)
+                continue
+            step = steps.get(key)
+            if key in images:
+                ax.imshow(images[key])
+            if step is not None and not step["ok"]:
+                ax.set_title(f"{asset}: {title}\nERROR", fontsize=10, color="red")
+            elif step is not None:
+                ax.set_title(f"{asset}: {title}\n{step['seconds']:.1f} s", fontsize=10)
+        row[0].set_ylabel(asset, fontsize=12)
+    fig.suptitle("The add-on's steps on the sample assets (Cycles, lit by the preview probe; "
+                 "step seconds exclude the render)", fontsize=12)
     path.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(np.concatenate(tiles, 1)).save(path)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def bundled_decoder_sha256(zip_path: Path) -> str:
+    """The sha256 of the decoder the built extension ships (and so encodes, fits and previews with)."""
+    with zipfile.ZipFile(zip_path) as z:
+        return hashlib.sha256(z.read("decoder/weights.safetensors")).hexdigest()
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--assets", nargs="+", default=list(ASSETS))
     parser.add_argument("--steps", type=int, default=100, help="fit steps (the operator's Fit Steps)")
-    parser.add_argument("--size", type=int, default=192, help="render size in pixels")
+    parser.add_argument("--size", type=int, default=320, help="render size in pixels")
     parser.add_argument("--samples", type=int, default=16, help="Cycles samples per pixel of the renders")
     parser.add_argument("--texture-size", type=int, default=256,
                         help="scale the asset's images down to this many texels at most (0: as stored)")
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "addon_assets.json")
-    parser.add_argument("--sheet-asset", default="WaterBottle")
     parser.add_argument("--sheet", type=Path, default=REPO / "docs" / "reports" / "addon_steps.png")
-    parser.add_argument("--merge", action="store_true", help="keep the other assets of an existing report")
     args = parser.parse_args()
 
     zip_path = build_extension()
-    settings = dict(fit_steps=args.steps, texture_size=args.texture_size, render_size=args.size,
-                    render_samples=args.samples, torch_threads=os.environ.get("OMP_NUM_THREADS", "all"))
-    assets = {}
+    bundled = bundled_decoder_sha256(zip_path)
+    if bundled != weights.digest():
+        raise SystemExit(f"the extension ships decoder {bundled[:8]}, not the shipped {weights.digest()[:8]}")
+    report = dict(provenance=provenance(decoders=[weights.SHIPPED]), probe=DEFAULT_PROBE.name,
+                  extension=zip_path.name,
+                  settings=dict(fit_steps=args.steps, texture_size=args.texture_size, render_size=args.size,
+                                render_samples=args.samples, torch_threads=os.environ.get("OMP_NUM_THREADS", "all")),
+                  assets={})
+    rows = {}
     for name in args.assets:
         with tempfile.TemporaryDirectory(prefix=f"richmat_{name}_") as tmp:
             record = run_asset(name, zip_path, Path(tmp), args)
-            if name == args.sheet_asset:
-                contact_sheet(record, Path(tmp) / "renders", args.sheet)
+            images = step_images(record, Path(tmp) / "renders")
         for r in record["records"]:
             r["render"] = Path(r["render"]).name if "render" in r else None
-        assets[name] = dict(record, settings=settings)
-        # Read again before writing: runs of other assets with --merge may have written meanwhile.
-        report = json.loads(args.out.read_text()) if args.merge and args.out.is_file() else {}
-        report.update(probe=DEFAULT_PROBE.name, extension=zip_path.name)
-        report.setdefault("assets", {}).update(assets)
+            r.pop("mask", None)
+        record["load_average_after"] = os.getloadavg()
+        report["assets"][name] = record
         report["all_ok"] = all(r["ok"] for a in report["assets"].values() for r in a["records"])
-        args.out.write_text(json.dumps(report, indent=1))
-        print(name, {r["step"]: (r["ok"], round(r["seconds"], 1)) for r in record["records"]}, flush=True)
+        write_report(args.out, report)
+        rows[name] = (record, images)
+        step_sheet(rows, args.sheet)
+        print(name, {r["step"]: (r["ok"], round(r["seconds"], 1)) for r in record["records"]},
+              f"FLIP preview vs bake {record.get('preview_flip_vs_bake', float('nan')):.3f}", flush=True)
 
 
 if __name__ == "__main__":
