@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.common import REPO, provenance, pyplot, write_report
+from bench.common import REPORTS, add_out_argument, pyplot, save_chart, write_report
 from tests.conftest import SHARED_ASSETS, run_blender
 from tests.test_addon_extension import build_extension, script
 from torch_models.neural import weights
@@ -272,7 +272,7 @@ def step_sheet(rows: dict[str, tuple[dict, dict[str, np.ndarray]]], path: Path) 
     """One row per asset, one labelled column per step (SHEET_COLUMNS), seconds in each title."""
     plt = pyplot()
     fig, axes = plt.subplots(len(rows), len(SHEET_COLUMNS), figsize=(3.4 * len(SHEET_COLUMNS), 3.8 * len(rows)),
-                             squeeze=False, layout="constrained")
+                             squeeze=False)
     for row, (asset, (record, images)) in zip(axes, rows.items()):
         steps = {r["step"]: r for r in record["records"]}
         for ax, (key, title) in zip(row, SHEET_COLUMNS):
@@ -291,11 +291,7 @@ def step_sheet(rows: dict[str, tuple[dict, dict[str, np.ndarray]]], path: Path) 
             elif step is not None:
                 ax.set_title(f"{asset}: {title}\n{step['seconds']:.1f} s", fontsize=10)
         row[0].set_ylabel(asset, fontsize=12)
-    fig.suptitle("The add-on's steps on the sample assets (Cycles, lit by the preview probe; "
-                 "step seconds exclude the render)", fontsize=12)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_chart(fig, path)
 
 
 def bundled_decoder_sha256(zip_path: Path) -> str:
@@ -312,16 +308,15 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=16, help="Cycles samples per pixel of the renders")
     parser.add_argument("--texture-size", type=int, default=256,
                         help="scale the asset's images down to this many texels at most (0: as stored)")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "addon_assets.json")
-    parser.add_argument("--sheet", type=Path, default=REPO / "docs" / "reports" / "addon_steps.png")
+    add_out_argument(parser, "addon_assets.json")
+    parser.add_argument("--sheet", type=Path, default=REPORTS / "addon_steps.png", help="the step sheet (PNG)")
     args = parser.parse_args()
 
     zip_path = build_extension()
     bundled = bundled_decoder_sha256(zip_path)
     if bundled != weights.digest():
         raise SystemExit(f"the extension ships decoder {bundled[:8]}, not the shipped {weights.digest()[:8]}")
-    report = dict(provenance=provenance(decoders=[weights.SHIPPED]), probe=DEFAULT_PROBE.name,
-                  extension=zip_path.name,
+    report = dict(probe=DEFAULT_PROBE.name, extension=zip_path.name,
                   settings=dict(fit_steps=args.steps, texture_size=args.texture_size, render_size=args.size,
                                 render_samples=args.samples, torch_threads=os.environ.get("OMP_NUM_THREADS", "all")),
                   assets={})
@@ -336,7 +331,7 @@ def main() -> None:
         record["load_average_after"] = os.getloadavg()
         report["assets"][name] = record
         report["all_ok"] = all(r["ok"] for a in report["assets"].values() for r in a["records"])
-        write_report(args.out, report)
+        write_report(args.out, report, decoders=[weights.SHIPPED])
         rows[name] = (record, images)
         step_sheet(rows, args.sheet)
         print(name, {r["step"]: (r["ok"], round(r["seconds"], 1)) for r in record["records"]},
