@@ -2,11 +2,11 @@
 
 For each of Types 0-5 and for each lobe alone, constant materials are drawn
 from the seed (bench/agreement_cases.py), rendered once by Cycles in a child
-process with the pip bpy module and once by torch_models.render, same ball,
-same probe, both tone mapped with Blender's AgX, and compared with LDR-FLIP
-(sRGB, 67 ppd; see torch_models/render/flip.py).
+process with the pip bpy module (bench/agreement_cycles.py) and once by
+torch_models.render, same ball, same probe, both tone mapped with Blender's AgX,
+and compared with LDR-FLIP (sRGB, 67 ppd; see torch_models/render/flip.py).
 
-    python bench/agreement.py [--quick] [--seed N] [--out FILE.json]
+    python -m bench.agreement [--quick] [--seed N] [--out FILE.json]
 
 Target: every case <= 0.03 in the full run, <= 0.05 with --quick (< 10 min on 2 cores).
 """
@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -25,17 +23,15 @@ from pathlib import Path
 import numpy as np
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
-
-from agreement_cases import Case, cases  # noqa: E402
-from richmat_addon.core.folder_io import read_exr  # noqa: E402
-from richmat_addon.core.preview import PreviewScene  # noqa: E402
-from torch_models.brdf.model import LayeredBsdf  # noqa: E402
-from torch_models.render.ball import render_ball  # noqa: E402
-from torch_models.render.envmap import EnvMap, read_probe  # noqa: E402
-from torch_models.render.flip import flip_map  # noqa: E402
-from torch_models.render.tonemap import agx  # noqa: E402
+from bench.agreement_cases import Case, cases
+from bench.common import FLIP_CONVENTION, REPO, REPORTS, contact_sheet, pyplot, run_python, save_chart, write_report
+from richmat_addon.core.folder_io import read_exr
+from richmat_addon.core.preview import PreviewScene
+from torch_models.brdf.model import LayeredBsdf
+from torch_models.render.ball import render_ball
+from torch_models.render.envmap import EnvMap, read_probe
+from torch_models.render.flip import flip_map
+from torch_models.render.tonemap import agx
 
 DEFAULT_PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
 # (cases per type, cases per lobe, resolution, Cycles samples, torch spp, FLIP target)
@@ -48,11 +44,7 @@ def render_cycles(all_cases: list[Case], probe: Path, resolution: int, samples: 
     job.write_text(json.dumps({"cases": [asdict(c) for c in all_cases], "probe": str(probe),
                                "resolution": resolution, "samples": samples, "seed": seed,
                                "out": str(folder)}))
-    env = dict(os.environ, BLENDER_USER_RESOURCES=str(folder / "blender_user"), PYTHONPATH=str(REPO))
-    proc = subprocess.run([sys.executable, str(REPO / "bench" / "agreement_cycles.py"), str(job)],
-                          env=env, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise SystemExit(f"Cycles renders failed:\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
+    run_python(["-m", "bench.agreement_cycles", str(job)], folder)
     return json.loads((folder / "cycles_times.json").read_text())
 
 
@@ -75,11 +67,7 @@ def torch_bsdf(case: Case) -> LayeredBsdf:
 
 
 def chart(report: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     rows = report["cases"]
     names = [r["name"] for r in rows]
     x = np.arange(len(rows))
@@ -96,19 +84,7 @@ def chart(report: dict, path: Path) -> None:
     b.set_ylabel("render time (s)")
     b.legend()
     b.set_xticks(x, names, rotation=70, ha="right", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-
-
-def contact_sheet(images: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]], path: Path) -> None:
-    """Cycles | torch | FLIP map per case, in rows."""
-    from PIL import Image
-
-    def u8(x: np.ndarray) -> np.ndarray:
-        return (np.clip(x, 0, 1) * 255 + 0.5).astype(np.uint8)
-
-    rows = [np.concatenate([u8(c), u8(t), u8(np.repeat(e[..., None], 3, -1))], 1) for _, c, t, e in images]
-    Image.fromarray(np.concatenate(rows, 0)).save(path)
+    save_chart(fig, path)
 
 
 def main() -> None:
@@ -126,8 +102,7 @@ def main() -> None:
 
     mode = "quick" if args.quick else "full"
     per_type, per_lobe, resolution, samples, spp, target = SETTINGS[mode]
-    out = args.out or REPO / "docs" / "reports" / f"agreement{'_quick' if args.quick else ''}.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
+    out = args.out or REPORTS / f"agreement{'_quick' if args.quick else ''}.json"
     all_cases = cases(args.seed, per_type, per_lobe)
     env = EnvMap(read_probe(args.probe))
     scene = PreviewScene(resolution=resolution)
@@ -156,10 +131,10 @@ def main() -> None:
     worst = max(r["flip"] for r in rows)
     report = {"quick": args.quick, "seed": args.seed, "probe": args.probe.name, "resolution": resolution,
               "cycles_samples": samples, "torch_spp": spp, "target": target,
-              "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
+              "flip_convention": FLIP_CONVENTION,
               "worst_flip": worst, "passed": worst <= target,
               "wall_seconds": time.perf_counter() - start, "cases": rows}
-    out.write_text(json.dumps(report, indent=1))
+    write_report(out, report)
     chart(report, out.with_suffix(".png"))
     contact_sheet(images, out.with_name(out.stem + "_sheet.png"))
     print(f"worst FLIP {worst:.4f} (target {target}): {'PASS' if report['passed'] else 'FAIL'}; "

@@ -1,7 +1,7 @@
 """Blender side of bench/agreement.py: render every case with Cycles (OSL).
 
-Run in a child process with the pip bpy module (or ``blender -b -P``):
-    python bench/agreement_cycles.py JOB.json
+Run by bench/agreement.py in a child process with the pip bpy module:
+    python -m bench.agreement_cycles JOB.json
 JOB.json holds {"cases": [...], "probe", "resolution", "samples", "seed", "out"};
 writes OUT/<case>.exr and OUT/cycles_times.json (render seconds per case).
 """
@@ -12,14 +12,11 @@ import sys
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
+import bpy
 
-import bpy  # noqa: E402
-
-from agreement_cases import Case  # noqa: E402
-from richmat_addon.blender import cycles_builder, preview_scene  # noqa: E402
-from richmat_addon.core.preview import PreviewScene  # noqa: E402
+from bench.agreement_cases import Case
+from richmat_addon.blender import cycles_builder, preview_scene
+from richmat_addon.core.preview import PreviewScene
 
 
 def main(job_path: Path) -> None:
@@ -42,5 +39,4 @@ def main(job_path: Path) -> None:
 
 
 if __name__ == "__main__":
-    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
-    main(Path(argv[0]))
+    main(Path(sys.argv[1]))

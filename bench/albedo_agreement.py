@@ -7,28 +7,24 @@ the same way), the albedo of f_neu (luminance) and of the analytic part it stand
 half-vector quadrature, at view cosines from 1 down to 0.05. A ratio below 1 is a
 material rendered too dark at that angle, above 1 too bright (or gaining energy).
 
-    python bench/albedo_agreement.py [--per-type N] [--seed S] [--out FILE.json] [--weights RUN]
+    python -m bench.albedo_agreement [--per-type N] [--seed S] [--out FILE.json] [--weights RUN]
 """
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
-
-from agreement_cases import cases  # noqa: E402
-from richmat_addon.core.enhancement_types import TYPES  # noqa: E402
-from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors  # noqa: E402
-from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.fitting import fit_latents  # noqa: E402
-from torch_models.neural.quadrature import half_vector_nodes  # noqa: E402
+from bench.agreement_cases import cases
+from bench.common import add_out_argument, pyplot, save_chart, write_report
+from richmat_addon.core.enhancement_types import TYPES
+from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors
+from torch_models.neural import weights
+from torch_models.neural.fitting import fit_latents
+from torch_models.neural.quadrature import half_vector_nodes
 
 VIEW_COSINES = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2, 0.15, 0.1, 0.05)
 
@@ -54,7 +50,7 @@ def main() -> None:
     parser.add_argument("--per-type", type=int, default=10)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--steps", type=int, default=400, help="fit steps, as fit_flip")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "albedo_agreement.json")
+    add_out_argument(parser, "albedo_agreement.json")
     parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
     args = parser.parse_args()
 
@@ -70,12 +66,11 @@ def main() -> None:
                          "p10": float(np.percentile(ratio[:, a], 10)), "p90": float(np.percentile(ratio[:, a], 90)),
                          "median_ratio_per_type": [float(np.median(ratio[types == t, a])) for t in range(len(TYPES))]}
                for a, mu in enumerate(VIEW_COSINES)}
-    report = {"per_type": args.per_type, "seed": args.seed, "steps": args.steps, "decoder_sha256": model.digest,
+    report = {"per_type": args.per_type, "seed": args.seed, "steps": args.steps,
               "view_cosines": VIEW_COSINES, "summary": summary, "wall_seconds": time.perf_counter() - start,
               "materials": [{"name": c.name, "analytic": analytic[k].tolist(), "neural": neural[k].tolist()}
                             for k, c in enumerate(drawn)]}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1))
+    write_report(args.out, report, [args.weights])
     chart(ratio, types, args.out.with_suffix(".png"), args.seed)
     for mu, s in summary.items():
         print(f"cos {mu:>5}: neural / analytic albedo median {s['median_ratio']:.3f} "
@@ -83,11 +78,7 @@ def main() -> None:
 
 
 def chart(ratio: np.ndarray, types: np.ndarray, path: Path, seed: int) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4))
     mu = np.array(VIEW_COSINES)
     ax.fill_between(mu, np.percentile(ratio, 10, 0), np.percentile(ratio, 90, 0), color="gray", alpha=0.25,
@@ -101,8 +92,7 @@ def chart(ratio: np.ndarray, types: np.ndarray, path: Path, seed: int) -> None:
     ax.set_ylabel("albedo of f_neu / analytic")
     ax.set_title(f"Directional albedo, fitted neural vs analytic (seed {seed})")
     ax.legend(fontsize=7, ncol=2)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_chart(fig, path)
 
 
 if __name__ == "__main__":

@@ -13,14 +13,13 @@ every JSON equal once its timings (and the manifest's file hashes) are left out,
 the MP4 equal byte for byte but for its creation-date tag, every other file equal
 byte for byte; only ``logs/`` (the processes' own output) is not compared.
 
-    python bench/batch_restart.py [--work DIR] [--kill-after 300] [--out docs/reports/batch_restart.json]
+    python -m bench.batch_restart [--work DIR] [--kill-after 300] [--out docs/reports/batch_restart.json]
         [--resolution 64 --frames 4 --samples 16 --fit-steps 5 --max-texture 16]
 """
 from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import shutil
 import signal
@@ -33,12 +32,11 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO)]
-
-from batch import ledger  # noqa: E402
-from tests.conftest import SHARED_ASSETS  # noqa: E402
-from tests.test_batch_render import make_inputs  # noqa: E402
+from batch import ledger
+from batch.options import DEFAULT_DECODER
+from bench.common import REPO, add_out_argument, child_env, write_report
+from tests.conftest import SHARED_ASSETS
+from tests.test_batch_render import make_inputs
 
 
 def build_inputs(folder: Path, env: dict[str, str]) -> None:
@@ -146,7 +144,7 @@ def main() -> None:
     parser.add_argument("--work", type=Path, default=Path("/tmp/richmat_batch_restart"),
                         help="scratch folder (inputs, run_a, run_b); wiped first")
     parser.add_argument("--kill-after", type=float, default=300.0, help="seconds before run B is SIGKILLed")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "batch_restart.json")
+    add_out_argument(parser, "batch_restart.json")
     parser.add_argument("--resolution", type=int, default=64)
     parser.add_argument("--frames", type=int, default=4)
     parser.add_argument("--samples", type=int, default=16)
@@ -156,7 +154,7 @@ def main() -> None:
 
     shutil.rmtree(args.work, ignore_errors=True)
     args.work.mkdir(parents=True)
-    env = dict(os.environ, BLENDER_USER_RESOURCES=str(args.work / "blender_user"), PYTHONPATH=str(REPO))
+    env = child_env(args.work / "blender_user")
     inputs = args.work / "inputs"
     build_inputs(inputs, env)
 
@@ -193,8 +191,7 @@ def main() -> None:
     report["comparison"] = compare(args.work / "run_a", out_b)
     report["no_partial_left"] = not list(out_b.glob("*.partial")) and not list(
         (args.work / "run_a").glob("*.partial"))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1, ensure_ascii=False))
+    write_report(args.out, report, [DEFAULT_DECODER])
     c = report["comparison"]
     print(f"A: {len(report['run_a']['done'])} done, {len(report['run_a']['failed'])} failed; "
           f"B: {len(report['run_b']['done'])} done, {len(report['run_b']['failed'])} failed; "

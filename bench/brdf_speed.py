@@ -5,26 +5,24 @@ weights means Type 0 evaluates 2 lobes, Type 5 six). Each timing is the median
 of several repeats; types are timed interleaved in one run so ratios compare
 like with like on a shared machine.
 
-    python bench/brdf_speed.py [--out docs/reports/brdf_speed.json] [--repeats 5]
+    python -m bench.brdf_speed [--out docs/reports/brdf_speed.json] [--repeats 5]
 """
 from __future__ import annotations
 
 import argparse
 import json
 import statistics
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from richmat_addon.core.enhance import enhance  # noqa: E402
-from richmat_addon.core.enhancement_types import TYPES  # noqa: E402
-from richmat_addon.core.maps import ParamMap, PbrInputs  # noqa: E402
-from torch_models.brdf.model import LayeredBsdf  # noqa: E402
+from bench.common import add_out_argument, pyplot, save_chart, write_report
+from richmat_addon.core.enhance import enhance
+from richmat_addon.core.enhancement_types import TYPES
+from richmat_addon.core.maps import ParamMap, PbrInputs
+from torch_models.brdf.model import LayeredBsdf
 
 BATCHES = (1_024, 16_384, 131_072)
 
@@ -56,7 +54,7 @@ def time_eval(bsdf: LayeredBsdf, n: int, gen: torch.Generator, budget: float = 0
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("docs/reports/brdf_speed.json"))
+    add_out_argument(parser, "brdf_speed.json")
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
     torch.manual_seed(0)
@@ -75,17 +73,13 @@ def main() -> None:
     base = report["evals_per_second_median"]["type 0"][str(BATCHES[-1])]
     report["cost_relative_to_type0_at_largest_batch"] = {
         k: base / v[str(BATCHES[-1])] for k, v in report["evals_per_second_median"].items()}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=2) + "\n")
+    write_report(args.out, report)
     chart(report, args.out.with_suffix(".png"))
     print(json.dumps(report["cost_relative_to_type0_at_largest_batch"], indent=2))
 
 
 def chart(report: dict, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, ax = plt.subplots(1, 2, figsize=(11, 4))
     med = report["evals_per_second_median"]
     for name, per_batch in med.items():
@@ -103,8 +97,7 @@ def chart(report: dict, path: Path) -> None:
     ax[1].set_xticks(range(len(names)), [n.replace(", ", "\n") for n in names], fontsize=7)
     ax[1].legend(fontsize=8)
     ax[1].set_title("cost grows with enabled lobes")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_chart(fig, path)
 
 
 if __name__ == "__main__":

@@ -8,7 +8,7 @@ alone (one per roughness node) under zero-angle suns (bench/sheen_cycles.py),
 each pixel giving f(wi, wo) cos(theta_o) exactly, and we fit the 32 x 32 x 3
 table (initialised from the fits) to those values in log space with Adam.
 
-    python bench/calibrate_sheen.py [--out torch_models/brdf/data/sheen_ltc.npy]
+    python -m bench.calibrate_sheen [--out torch_models/brdf/data/sheen_ltc.npy]
 
 Writes the table and docs/reports/sheen_calibration.json (the fit's residual before and
 after, per roughness). Takes ~5 minutes on 2 cores.
@@ -18,20 +18,15 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO)]
-
-from torch_models.brdf import lobes, tables  # noqa: E402
-from torch_models.brdf.frame import tangent_frame, to_local  # noqa: E402
+from bench.common import REPO, REPORTS, run_python, write_report
+from torch_models.brdf import lobes, tables
+from torch_models.brdf.frame import tangent_frame, to_local
 
 SUNS = 24
 PX_PER_UNIT = 24
@@ -60,11 +55,7 @@ def measure(folder: Path) -> tuple[list[np.ndarray], dict, np.ndarray]:
     job = folder / "job.json"
     job.write_text(json.dumps({"roughness": roughness_nodes(), "suns": suns.tolist(),
                                "px_per_unit": PX_PER_UNIT, "out": str(folder)}))
-    env = dict(os.environ, BLENDER_USER_RESOURCES=str(folder / "blender_user"), PYTHONPATH=str(REPO))
-    proc = subprocess.run([sys.executable, str(REPO / "bench" / "sheen_cycles.py"), str(job)],
-                          env=env, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise SystemExit(f"Cycles measurement failed:\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}")
+    run_python(["-m", "bench.sheen_cycles", str(job)], folder)
     return load_measurement(folder)
 
 
@@ -142,7 +133,7 @@ def fit(start: torch.Tensor, loss_of) -> torch.Tensor:  # type: ignore[no-untype
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=REPO / "torch_models" / "brdf" / "data" / "sheen_ltc.npy")
-    parser.add_argument("--report", type=Path, default=REPO / "docs" / "reports" / "sheen_calibration.json")
+    parser.add_argument("--report", type=Path, default=REPORTS / "sheen_calibration.json")
     parser.add_argument("--measurements", type=Path, default=None,
                         help="keep the Cycles measurement in this folder, or reuse the one already there")
     args = parser.parse_args()
@@ -183,7 +174,7 @@ def main() -> None:
               "mean_abs_log_error_before": float(before.mean()), "mean_abs_log_error_after": float(after.mean()),
               "max_change": {k: float((fitted[j] - start[j]).abs().max()) for j, k in enumerate("ABR")},
               "per_roughness": per_r}
-    args.report.write_text(json.dumps(report, indent=1))
+    write_report(args.report, report)
     print(f"mean |log error| {report['mean_abs_log_error_before']:.4f} -> {report['mean_abs_log_error_after']:.4f}; "
           f"wrote {args.out}")
 

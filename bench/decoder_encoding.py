@@ -7,13 +7,11 @@ encoder, so every decoder reads the same latent space; each then fits the same
 Table 1 materials (``--per-type`` per type, as bench/fit_flip.py draws them) and
 is compared with the analytic reference on the ball, and timed.
 
-    python bench/decoder_encoding.py [--steps N] [--batch B] [--per-type M] [--seed S] [--out FILE.json]
+    python -m bench.decoder_encoding [--steps N] [--batch B] [--per-type M] [--seed S] [--out FILE.json]
 """
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 import tempfile
 import time
 from dataclasses import replace
@@ -21,16 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
-
-from agreement_cases import cases  # noqa: E402
-from fit_speed import decoder_throughput  # noqa: E402
-from richmat_addon.core.enhancement_types import TYPES  # noqa: E402
-from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.evaluate import BallSetup, fit_and_compare  # noqa: E402
-from torch_models.neural.networks import DIRECTION_ENCODINGS  # noqa: E402
-from torch_models.neural.train import TrainConfig, Trainer  # noqa: E402
+from bench.agreement_cases import cases
+from bench.common import REPO, add_out_argument, pyplot, save_chart, target_lines, write_report
+from bench.fit_speed import decoder_throughput
+from richmat_addon.core.enhancement_types import TYPES
+from torch_models.neural import weights
+from torch_models.neural.evaluate import BallSetup, fit_and_compare
+from torch_models.neural.networks import DIRECTION_ENCODINGS
+from torch_models.neural.train import TrainConfig, Trainer
 
 CPU_CONFIG = REPO / "torch_models" / "neural" / "configs" / "decoder_cpu.json"
 
@@ -54,7 +50,7 @@ def main() -> None:
     parser.add_argument("--per-type", type=int, default=10)
     parser.add_argument("--fit-steps", type=int, default=400)
     parser.add_argument("--seed", type=int, default=3)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "decoder_encoding.json")
+    add_out_argument(parser, "decoder_encoding.json")
     args = parser.parse_args()
 
     drawn = cases(args.seed, args.per_type, 0)
@@ -79,17 +75,12 @@ def main() -> None:
                   f"worst {row['worst_flip']:.4f}, {row['evals_per_second'] / 1e6:.2f} M evals/s", flush=True)
     report = {"seed": args.seed, "per_type": args.per_type, "steps": args.steps, "batch": args.batch,
               "fit_steps": args.fit_steps, "encodings": rows}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1))
+    write_report(args.out, report, [weights.SHIPPED])  # its encoder, frozen, under every decoder
     chart(report, args.out.with_suffix(".png"))
 
 
 def chart(report: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(14, 4))
     types = range(len(TYPES))
     for r in report["encodings"]:
@@ -100,8 +91,7 @@ def chart(report: dict, path: Path) -> None:
                      label=f"{r['encoding']} worst")
         axes[2].scatter(r["evals_per_second"] / 1e6, r["median_flip"], color=line.get_color(), label=r["encoding"])
     axes[0].set(title="decoder loss (training)", xlabel="step", yscale="log")
-    axes[1].axhline(0.05, ls="--", color="gray", lw=0.8)
-    axes[1].axhline(0.12, ls=":", color="gray", lw=0.8)
+    target_lines(axes[1], labelled=False)
     axes[1].set(title=f"FLIP per type ({report['per_type']} materials each, seed {report['seed']})",
                 xlabel="type", ylabel="mean FLIP, neural vs analytic")
     axes[2].set(title="accuracy vs speed", xlabel="decoder evaluations per second (millions, one thread)",
@@ -110,9 +100,7 @@ def chart(report: dict, path: Path) -> None:
         ax.legend(fontsize=7)
     fig.suptitle(f"direction encodings, 4 x 64 decoders, {report['steps']} steps x {report['batch']} each, "
                  "shipped encoder frozen", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_chart(fig, path)
 
 
 if __name__ == "__main__":

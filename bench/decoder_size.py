@@ -8,13 +8,12 @@ batch 65536). The shipped decoder (the paper's 4 x 64, full schedule) is
 measured alongside, so the chart shows both what size buys at equal training
 and what the longer schedule adds.
 
-    python bench/decoder_size.py [--steps N] [--batch B] [--per-type M] [--seed S] [--out FILE.json]
+    python -m bench.decoder_size [--steps N] [--batch B] [--per-type M] [--seed S] [--out FILE.json]
 """
 from __future__ import annotations
 
 import argparse
 import json
-import sys
 import tempfile
 import time
 from dataclasses import replace
@@ -22,14 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
-
-from agreement_cases import cases  # noqa: E402
-from fit_speed import decoder_throughput  # noqa: E402
-from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.evaluate import BallSetup, fit_and_compare  # noqa: E402
-from torch_models.neural.train import TrainConfig, Trainer  # noqa: E402
+from bench.agreement_cases import cases
+from bench.common import REPO, add_out_argument, pyplot, save_chart, write_report
+from bench.fit_speed import decoder_throughput
+from torch_models.neural import weights
+from torch_models.neural.evaluate import BallSetup, fit_and_compare
+from torch_models.neural.train import TrainConfig, Trainer
 
 SIZES = ((2, 16), (2, 32), (3, 64), (4, 64), (4, 128))  # (depth, width)
 CPU_CONFIG = REPO / "torch_models" / "neural" / "configs" / "decoder_cpu.json"
@@ -52,7 +49,7 @@ def main() -> None:
     parser.add_argument("--per-type", type=int, default=2)
     parser.add_argument("--fit-steps", type=int, default=300)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "decoder_size.json")
+    add_out_argument(parser, "decoder_size.json")
     args = parser.parse_args()
 
     drawn = cases(args.seed + 11, args.per_type, 0)
@@ -80,17 +77,12 @@ def main() -> None:
     ship.update(measure(shipped, setup, vectors, colours, args.fit_steps))
     report = {"seed": args.seed, "materials": len(drawn), "fit_steps": args.fit_steps, "sizes": rows,
               "shipped": ship}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1))
+    write_report(args.out, report, [weights.SHIPPED])
     chart(report, args.out.with_suffix(".png"))
 
 
 def chart(report: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.2))
     for r in report["sizes"]:
         ax.scatter(r["evals_per_second"] / 1e6, r["median_flip"], color="tab:blue")
@@ -103,8 +95,7 @@ def chart(report: dict, path: Path) -> None:
     first = report["sizes"][0]
     ax.set_title(f"decoder size: blue = {first['training_steps']} steps x {first['training_batch']} samples each")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_chart(fig, path)
 
 
 if __name__ == "__main__":

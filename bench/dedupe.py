@@ -13,13 +13,11 @@ material per asset, latents are fitted per texel and per representative with
 the same samples per vector, both rendered in texture space (a flat patch seen
 at 45 degrees under the probe) and compared with the analytic render by FLIP.
 
-    python bench/dedupe.py [--seed S] [--assets DIR] [--out FILE.json]
+    python -m bench.dedupe [--seed S] [--assets DIR] [--out FILE.json]
 """
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -27,20 +25,18 @@ from pathlib import Path
 import numpy as np
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO)]
-
-from richmat_addon.core import material_folder  # noqa: E402
-from torch_models.brdf.model import LayeredBsdf, params_from_vectors  # noqa: E402
-from torch_models.cli import main as cli  # noqa: E402
-from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.bsdf import NeuralBsdf  # noqa: E402
-from torch_models.neural.evaluate import DEFAULT_PROBE, compare  # noqa: E402
-from torch_models.neural.material_vectors import MaterialVectors, read_vectors  # noqa: E402
-from torch_models.neural.fitting import fit_latents  # noqa: E402
-from torch_models.render.ball import shade_gbuffer  # noqa: E402
-from torch_models.render.envmap import EnvMap  # noqa: E402
-from torch_models.render.tonemap import agx  # noqa: E402
+from bench.common import REPO, add_out_argument, pyplot, save_chart, write_report
+from richmat_addon.core import material_folder
+from torch_models.brdf.model import LayeredBsdf, params_from_vectors
+from torch_models.cli import main as cli
+from torch_models.neural import weights
+from torch_models.neural.bsdf import NeuralBsdf
+from torch_models.neural.evaluate import DEFAULT_PROBE, compare
+from torch_models.neural.fitting import fit_latents
+from torch_models.neural.material_vectors import MaterialVectors, read_vectors
+from torch_models.render.ball import shade_gbuffer
+from torch_models.render.envmap import EnvMap
+from torch_models.render.tonemap import agx
 
 CROP = 32
 SAMPLES_PER_VECTOR = 32  # per Adam step, for either way of fitting
@@ -86,7 +82,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--assets", type=Path, default=REPO.parent / "shared" / "assets" / "models")
     parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "dedupe.json")
+    add_out_argument(parser, "dedupe.json")
     args = parser.parse_args()
     if not args.assets.is_dir():
         raise SystemExit(f"{args.assets}: no sample assets here")
@@ -128,22 +124,17 @@ def main() -> None:
 
     texels = sum(m["texels"] for m in materials)
     reps = sum(m["representatives"] for m in materials)
-    report = {"seed": args.seed, "decoder_sha256": model.digest, "samples_per_vector_per_step": SAMPLES_PER_VECTOR,
+    report = {"seed": args.seed, "samples_per_vector_per_step": SAMPLES_PER_VECTOR,
               "steps": STEPS, "total_texels": texels, "total_exact_unique": sum(m["exact_unique"] for m in materials),
               "total_representatives": reps, "evaluation_ratio": texels / reps, "target_ratio": 10.0,
               "passed": texels / reps >= 10.0, "materials": materials, "equal_flip_crops": crops}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1))
+    write_report(args.out, report, [args.weights])
     chart(report, args.out.with_suffix(".png"))
     print(f"{texels} texels -> {reps} fitted vectors: {texels / reps:.0f}x fewer decoder evaluations; wrote {args.out}")
 
 
 def chart(report: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.2))
     rows = report["materials"]
     x = np.arange(len(rows))
@@ -168,8 +159,7 @@ def chart(report: dict, path: Path) -> None:
     b.set_ylabel("FLIP vs analytic (texture-space patch)")
     b.set_title("same samples per fitted vector: equal accuracy, fewer evaluations")
     b.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_chart(fig, path)
 
 
 if __name__ == "__main__":

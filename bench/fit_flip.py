@@ -12,7 +12,7 @@ many fits pass as fitted, after the energy refit, or only with the energy scale
 (a decoder bounded by construction passes as fitted), and on how many materials
 the analytic reference itself exceeds 1.
 
-    python bench/fit_flip.py [--per-type N] [--seed S] [--out FILE.json] [--weights RUN ...]
+    python -m bench.fit_flip [--per-type N] [--seed S] [--out FILE.json] [--weights RUN ...]
 
 Targets: every type median <= 0.05 and worst <= 0.12 (the hybrid's: 0.04 / 0.10).
 """
@@ -21,25 +21,45 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
-
-from agreement_cases import cases  # noqa: E402
-from torch_models.neural import weights  # noqa: E402
-from common import add_weights_argument, provenance, pyplot, weights_folders, write_report  # noqa: E402
-from richmat_addon.core.enhancement_types import TYPES  # noqa: E402
-from richmat_addon.core.schema import CHANNEL_SLICES  # noqa: E402
-from torch_models.neural.evaluate import BallSetup, fit_and_compare, reference_furnace, render_reference, side_by_side  # noqa: E402
-from torch_models.neural.energy import QUADRATURE_TOLERANCE  # noqa: E402
+from bench.agreement_cases import Case, cases
+from bench.common import (FLIP_CONVENTION, TARGET_MEDIAN, TARGET_WORST, add_out_argument, add_weights_argument,
+                          pyplot, save_chart, target_lines, weights_folders, write_report)
+from richmat_addon.core.enhancement_types import TYPES
+from richmat_addon.core.schema import CHANNEL_SLICES
+from torch_models.neural import weights
+from torch_models.neural.energy import QUADRATURE_TOLERANCE
+from torch_models.neural.evaluate import (BallSetup, fit_and_compare, reference_furnace, render_reference,
+                                          side_by_side)
 
 PAPER = {0: (0.0487, 0.0920, 0.1871), 1: (0.0312, 0.0727, 0.1670), 2: (0.0649, 0.0858, 0.1192),
          3: (0.0554, 0.0877, 0.1664), 4: (0.0276, 0.0643, 0.1705), 5: (0.0454, 0.0807, 0.1754)}
-TARGET_MEDIAN, TARGET_WORST = 0.05, 0.12
+STEPS, RESOLUTION, SPP = 400, 128, 64
+
+
+@dataclass(frozen=True)
+class Table1:
+    """The drawn materials and their analytic renders: the same for every decoder measured on them."""
+
+    drawn: list[Case]
+    vectors: np.ndarray
+    base_colors: np.ndarray
+    setup: BallSetup
+    references: list[np.ndarray]
+
+    @classmethod
+    def draw(cls, per_type: int, seed: int, resolution: int = RESOLUTION, spp: int = SPP) -> Table1:
+        drawn = cases(seed, per_type, 0)
+        vectors = np.stack([c.vector() for c in drawn])
+        base_colors = np.array([c.base_color for c in drawn], np.float32)
+        setup = BallSetup.default(resolution, spp, seed)
+        references = [render_reference(setup, vectors[k], base_colors[k]) for k in range(len(drawn))]
+        return cls(drawn, vectors, base_colors, setup, references)
 
 
 def buckets(vectors: np.ndarray) -> dict[str, np.ndarray]:
@@ -62,21 +82,20 @@ def summarise(rows: list[dict], masks: dict[str, np.ndarray]) -> tuple[dict, dic
     return summary, bucket
 
 
-def evaluate(folder: Path, setup: BallSetup, drawn: list, vectors: np.ndarray, base_colors: np.ndarray,
-             references: list[np.ndarray], steps: int) -> tuple[dict, dict]:
+def evaluate(folder: Path, table: Table1, steps: int) -> tuple[dict, dict]:
     """One decoder's results on the drawn materials, and its worst comparison per type."""
     model = weights.load(folder)
     start = time.perf_counter()
-    results, bounded = fit_and_compare(setup, model, vectors, base_colors, steps, references)
+    results, bounded = fit_and_compare(table.setup, model, table.vectors, table.base_colors, steps, table.references)
     check, rows, worst = bounded.check, [], {}
-    for k, (case, result) in enumerate(zip(drawn, results)):
+    for k, (case, result) in enumerate(zip(table.drawn, results)):
         type_ = int(case.name[4])
         rows.append({"name": case.name, "type": type_, "flip": result.flip,
                      "furnace_albedo": float(check.albedo[k]), "refitted": bool(bounded.refitted[k]),
                      "repaired": bool(check.failing[k])})
         if result.flip >= (worst[type_].flip if type_ in worst else -1.0):
             worst[type_] = result
-    summary, bucket = summarise(rows, buckets(vectors))
+    summary, bucket = summarise(rows, buckets(table.vectors))
     return {"weights": str(folder), "kind": model.decoder.kind, "decoder_sha256": model.digest,
             "summary": summary, "buckets": bucket, "all_passed": all(s["passed"] for s in summary.values()),
             "fit_and_render_seconds": time.perf_counter() - start,
@@ -84,28 +103,31 @@ def evaluate(folder: Path, setup: BallSetup, drawn: list, vectors: np.ndarray, b
             "materials": rows}, worst
 
 
+def ranked(per_type: int, seed: int) -> list[dict]:
+    """The rows of a Table 1 run of the shipped decoder, worst FLIP first: what the benches that
+    study the worst materials start from."""
+    result, _ = evaluate(weights.SHIPPED, Table1.draw(per_type, seed), STEPS)
+    return sorted(result["materials"], key=lambda r: -r["flip"])
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--per-type", type=int, default=50)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "fit_flip.json")
+    add_out_argument(parser, "fit_flip.json")
     add_weights_argument(parser)
-    parser.add_argument("--steps", type=int, default=400, help="fit steps (all materials fitted together)")
-    parser.add_argument("--resolution", type=int, default=128)
-    parser.add_argument("--spp", type=int, default=64)
+    parser.add_argument("--steps", type=int, default=STEPS, help="fit steps (all materials fitted together)")
+    parser.add_argument("--resolution", type=int, default=RESOLUTION)
+    parser.add_argument("--spp", type=int, default=SPP)
     args = parser.parse_args()
     folders = weights_folders(args)
 
     start = time.perf_counter()
-    drawn = cases(args.seed, args.per_type, 0)
-    vectors = np.stack([c.vector() for c in drawn])
-    base_colors = np.array([c.base_color for c in drawn], np.float32)
-    setup = BallSetup.default(args.resolution, args.spp, args.seed)
-    references = [render_reference(setup, vectors[k], base_colors[k]) for k in range(len(drawn))]
-    reference = reference_furnace(vectors)
+    table = Table1.draw(args.per_type, args.seed, args.resolution, args.spp)
+    reference = reference_furnace(table.vectors)
     decoders, worst_sheets = [], []
     for folder in folders:
-        result, worst = evaluate(folder, setup, drawn, vectors, base_colors, references, args.steps)
+        result, worst = evaluate(folder, table, args.steps)
         for row, albedo in zip(result["materials"], reference):
             row["reference_albedo"] = float(albedo)
         decoders.append(result)
@@ -118,11 +140,10 @@ def main() -> None:
               f"{f['passed_after_refit']} after the energy refit, {f['repaired_by_scaling']} scaled; buckets "
               f"{result['buckets']}")
     report = {"per_type": args.per_type, "seed": args.seed, "steps": args.steps, "resolution": args.resolution,
-              "spp": args.spp, "provenance": provenance(folders),
-              "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
+              "spp": args.spp, "flip_convention": FLIP_CONVENTION,
               "reference_over_tolerance": int((reference > 1 + QUADRATURE_TOLERANCE).sum()),
               "wall_seconds": time.perf_counter() - start, "decoders": decoders}
-    write_report(args.out, report)
+    write_report(args.out, report, folders)
     chart(report, args.out.with_suffix(".png"))
     Image.fromarray(np.concatenate(worst_sheets, 1)).save(args.out.with_name(args.out.stem + "_worst.png"))
     sys.exit(0 if all(d["all_passed"] for d in decoders) else 1)
@@ -144,14 +165,12 @@ def chart(report: dict, path: Path) -> None:
     for t in range(len(TYPES)):
         best, med, worst = report["decoders"][0]["summary"][t]["paper"]
         ax.plot([t + 0.3] * 3, [best, med, worst], "o-", color="tab:red", label="paper best/median/worst" if t == 0 else None)
-    ax.axhline(TARGET_MEDIAN, ls="--", color="gray", lw=0.8, label=f"target median {TARGET_MEDIAN}")
-    ax.axhline(TARGET_WORST, ls=":", color="gray", lw=0.8, label=f"target worst {TARGET_WORST}")
+    target_lines(ax)
     ax.set_xticks(range(len(TYPES)), [f"Type {t.index}" for t in TYPES])
     ax.set_ylabel("mean FLIP, neural vs analytic")
     ax.set_title(f"Fitted neural materials, {report['per_type']} per type, seed {report['seed']} (bars: medians)")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_chart(fig, path)
 
 
 if __name__ == "__main__":

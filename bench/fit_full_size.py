@@ -11,12 +11,11 @@ The MLP's furnace is linear in the unique vectors it checks and takes tens of
 minutes on a 1k material; ``--furnace-sample N`` times it on N of them and
 scales the seconds to all (marked ``extrapolated``), so a run stays short.
 
-    python bench/fit_full_size.py [--assets WaterBottle ...] [--weights RUN ...] [--steps 300]
+    python -m bench.fit_full_size [--assets WaterBottle ...] [--weights RUN ...] [--steps 300]
 """
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -24,16 +23,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
-
-from common import add_weights_argument, provenance, pyplot, weights_folders, write_report  # noqa: E402
-from tests.conftest import SHARED_ASSETS  # noqa: E402
-from torch_models.cli import main as cli  # noqa: E402
-from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.energy import fit_bounded  # noqa: E402
-from torch_models.neural.fitting import fit_latents  # noqa: E402
-from torch_models.neural.material_vectors import read_vectors  # noqa: E402
+from bench.common import add_out_argument, add_weights_argument, pyplot, save_chart, weights_folders, write_report
+from tests.conftest import SHARED_ASSETS
+from torch_models.cli import main as cli
+from torch_models.neural import weights
+from torch_models.neural.energy import fit_bounded
+from torch_models.neural.fitting import fit_latents
+from torch_models.neural.material_vectors import read_vectors
 
 ASSETS = ("WaterBottle", "CesiumMilkTruck", "FlightHelmet")
 ADDON_FIT_STEPS = 300  # richmat_addon/blender/props.py fit_steps default
@@ -70,7 +66,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=ADDON_FIT_STEPS)
     parser.add_argument("--furnace-sample", type=int, default=512, help="unique vectors the MLP's furnace is timed on")
     add_weights_argument(parser)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "fit_full_size.json")
+    add_out_argument(parser, "fit_full_size.json")
     args = parser.parse_args()
     folders = weights_folders(args)
     models = [weights.load(f) for f in folders]
@@ -95,8 +91,8 @@ def main() -> None:
                           f"{' (extrapolated)' if stages['energy_extrapolated'] else ''}, total "
                           f"{stages['total_seconds']:.1f} s", flush=True)
     report = {"steps": args.steps, "type": args.type, "threads": torch.get_num_threads(),
-              "target_seconds": TARGET_SECONDS, "provenance": provenance(folders), "materials": rows}
-    write_report(args.out, report)
+              "target_seconds": TARGET_SECONDS, "materials": rows}
+    write_report(args.out, report, folders)
     chart(report, args.out.with_suffix(".png"))
 
 
@@ -124,8 +120,7 @@ def chart(report: dict, path: Path) -> None:
     ax.set_xlabel(f"seconds per material ({report['threads']} threads)")
     ax.set_title("Fit at full texture size, per stage")
     ax.legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_chart(fig, path)
 
 
 if __name__ == "__main__":

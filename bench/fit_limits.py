@@ -1,9 +1,9 @@
 """Is the Table 1 error the fit's or the decoder's? Fit variants on fit_flip's worst materials.
 
-Takes the materials of a committed ``bench/fit_flip.py`` report (its seed and
-per-type count rebuild them): the worst metals, and dielectrics spread over the
-FLIP range for contrast. Each is fitted against the frozen decoder in several
-ways and rendered on the preview ball (analytic vs neural, mean FLIP):
+Runs Table 1 as ``bench/fit_flip.py`` does (``--seed``, ``--per-type``; the shipped
+decoder) and takes its worst metals, and dielectrics spread over the FLIP range
+for contrast. Each is fitted against the frozen decoder in several ways and
+rendered on the preview ball (analytic vs neural, mean FLIP):
 
 - the shipped fit: encoder start + 400 Adam steps of the fitting loss;
 - encoder start + 2000 steps (is the fit converged?);
@@ -18,13 +18,11 @@ ways and rendered on the preview ball (analytic vs neural, mean FLIP):
 If no variant moves the worst cases towards the targets, the decoder cannot
 represent those materials and a better decoder is the only fix.
 
-    python bench/fit_limits.py [--report docs/reports/fit_flip.json] [--metals 8] [--dielectrics 4] [--out FILE.json]
+    python -m bench.fit_limits [--seed 0] [--per-type 50] [--metals 8] [--dielectrics 4] [--out FILE.json]
 """
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -33,26 +31,23 @@ import numpy as np
 import torch
 from torch import Tensor
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
+from bench.agreement_cases import cases
+from bench.common import add_out_argument, pyplot, save_chart, target_lines, write_report
+from bench.fit_flip import ranked
+from torch_models.neural import weights
+from torch_models.neural.data import make_batch
+from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference
+from torch_models.neural.fitting import FIT_BATCH, fit_latents, fitting_loss, fitting_pool
+from torch_models.neural.loss import lobe_samples
+from torch_models.neural.networks import LATENT
 
-from agreement_cases import cases  # noqa: E402
-from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.data import make_batch  # noqa: E402
-from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference  # noqa: E402
-from torch_models.neural.fitting import FIT_BATCH, fit_latents, fitting_loss, fitting_pool  # noqa: E402
-from torch_models.neural.networks import LATENT  # noqa: E402
-from torch_models.neural.loss import lobe_samples  # noqa: E402
-
-TARGET_MEDIAN, TARGET_WORST = 0.05, 0.12
 STARTS = 8
 
 
-def pick(report: dict, metals: int, dielectrics: int) -> list[str]:
-    """The worst metals, and dielectrics evenly spaced over their FLIP ranking."""
-    ranked = sorted(report["materials"], key=lambda r: -r["flip"])
-    metal = [r["name"] for r in ranked if "metal" in r["name"]][:metals]
-    diel = [r["name"] for r in ranked if "diel" in r["name"]]
+def pick(rows: list[dict], metals: int, dielectrics: int) -> list[str]:
+    """The worst metals, and dielectrics evenly spaced over their FLIP ranking (``rows`` worst first)."""
+    metal = [r["name"] for r in rows if "metal" in r["name"]][:metals]
+    diel = [r["name"] for r in rows if "diel" in r["name"]]
     return metal + [diel[i] for i in np.linspace(0, len(diel) - 1, dielectrics).round().astype(int)]
 
 
@@ -102,23 +97,23 @@ def best_of_random_starts(model: weights.NeuralModel, vectors: np.ndarray, steps
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--report", type=Path, default=REPO / "docs" / "reports" / "fit_flip.json")
+    parser.add_argument("--seed", type=int, default=0, help="the Table 1 draw, as bench/fit_flip.py's")
+    parser.add_argument("--per-type", type=int, default=50)
     parser.add_argument("--metals", type=int, default=8)
     parser.add_argument("--dielectrics", type=int, default=4)
     parser.add_argument("--resolution", type=int, default=96)
     parser.add_argument("--spp", type=int, default=32)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "fit_limits.json")
+    add_out_argument(parser, "fit_limits.json")
     args = parser.parse_args()
     torch.set_num_threads(1)
 
-    report = json.loads(args.report.read_text())
-    names = pick(report, args.metals, args.dielectrics)
-    drawn = {c.name: c for c in cases(report["seed"], report["per_type"], 0)}
+    names = pick(ranked(args.per_type, args.seed), args.metals, args.dielectrics)
+    drawn = {c.name: c for c in cases(args.seed, args.per_type, 0)}
     chosen = [drawn[n] for n in names]
     vectors = np.stack([c.vector() for c in chosen])
     base_colors = np.array([c.base_color for c in chosen], np.float32)
     model = weights.load(weights.SHIPPED)
-    setup = BallSetup.default(args.resolution, args.spp, report["seed"])
+    setup = BallSetup.default(args.resolution, args.spp, args.seed)
     pool = torch.from_numpy(vectors)
     variants: dict[str, Callable[[], Tensor]] = {
         "encoder + 400 steps (shipped)": lambda: fit_latents(model, vectors, 400),
@@ -138,18 +133,14 @@ def main() -> None:
         results[label] = {"seconds": seconds, "flip": flips, "loss": held_out_loss(model, vectors, z).tolist()}
         print(f"{label}: {seconds:.0f} s, FLIP metals median {np.median(flips[:args.metals]):.3f} "
               f"worst {max(flips[:args.metals]):.3f}", flush=True)
-    out = {"report": str(args.report.relative_to(REPO)), "materials": names, "decoder_sha256": model.digest,
-           "resolution": args.resolution, "spp": args.spp, "metals": args.metals, "variants": results}
-    args.out.write_text(json.dumps(out, indent=1))
-    chart(out, args.out.with_suffix(".png"))
+    report = {"seed": args.seed, "per_type": args.per_type, "materials": names, "resolution": args.resolution,
+              "spp": args.spp, "metals": args.metals, "variants": results}
+    write_report(args.out, report, [weights.SHIPPED])
+    chart(report, args.out.with_suffix(".png"))
 
 
 def chart(report: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     labels = list(report["variants"])
     flips = np.array([report["variants"][v]["flip"] for v in labels])  # (variants, materials)
     m = report["metals"]
@@ -158,8 +149,7 @@ def chart(report: dict, path: Path) -> None:
     for k, name in enumerate(report["materials"]):
         ax.plot(x, flips[:, k], "o-", color="tab:red" if k < m else "tab:blue", alpha=0.55, ms=3, lw=0.8,
                 label=("metals (worst of Table 1)" if k == 0 else "dielectrics" if k == m else None))
-    ax.axhline(TARGET_WORST, ls=":", color="gray", lw=0.8, label="target worst 0.12")
-    ax.axhline(TARGET_MEDIAN, ls="--", color="gray", lw=0.8, label="target median 0.05")
+    target_lines(ax)
     ax.set_xticks(x, [label.replace(" (", "\n(").replace(" + ", "\n+ ") for label in labels], fontsize=7)
     ax.set_ylabel("mean FLIP, neural vs analytic")
     ax.set_title("Fit variants on the worst materials: the decoder, not the fit, sets the error", fontsize=9)
@@ -171,9 +161,7 @@ def chart(report: dict, path: Path) -> None:
     bx.set_xscale("log")
     bx.set_xlabel("fit seconds (all materials, one thread)")
     bx.set_ylabel("median FLIP of the metals")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_chart(fig, path)
 
 
 if __name__ == "__main__":

@@ -13,7 +13,7 @@
     point, one (latent, wi) and ``SHADING_DIRECTIONS`` wo, where the hybrid's head
     runs once per point (the MLP has nothing to reuse).
 
-    python bench/fit_speed.py [--per-type M] [--seed S] [--repeats R] [--weights RUN ...] [--out FILE.json]
+    python -m bench.fit_speed [--per-type M] [--seed S] [--repeats R] [--weights RUN ...] [--out FILE.json]
 
 ``--weights`` repeats: the decoders side by side on the same materials, interleaved.
 
@@ -23,23 +23,19 @@ ratios, not the absolute seconds.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
-
-from agreement_cases import cases  # noqa: E402
-from common import add_weights_argument, provenance, pyplot, weights_folders, write_report  # noqa: E402
-from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference  # noqa: E402
-from torch_models.neural.fitting import FIT_BATCH, fit_latents  # noqa: E402
-from torch_models.neural.hybrid import HybridDecoder  # noqa: E402
-from torch_models.neural.networks import LATENT  # noqa: E402
+from bench.agreement_cases import cases
+from bench.common import add_out_argument, add_weights_argument, pyplot, save_chart, weights_folders, write_report
+from torch_models.neural import weights
+from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference
+from torch_models.neural.fitting import FIT_BATCH, fit_latents
+from torch_models.neural.hybrid import HybridDecoder
+from torch_models.neural.networks import LATENT
 
 STEPS = (0, 25, 50, 100, 200, 400, 800)
 
@@ -122,7 +118,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats per variant (median)")
     add_weights_argument(parser)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "fit_speed.json")
+    add_out_argument(parser, "fit_speed.json")
     args = parser.parse_args()
     folders = weights_folders(args)
 
@@ -158,10 +154,10 @@ def main() -> None:
     for d in decoders:
         d["evals_per_second_vs_first"] = {r: d["throughput"][r]["decoder_evals_per_second"]
                                           / base[r]["decoder_evals_per_second"] for r in base}
-    report = {"seed": args.seed, "materials": len(drawn), "provenance": provenance(folders), "fit_batch": FIT_BATCH,
+    report = {"seed": args.seed, "materials": len(drawn), "fit_batch": FIT_BATCH,
               "repeats": args.repeats, "threads": threads, "matmul_peak_flops_per_second": peak,
               "shading_directions": SHADING_DIRECTIONS, "decoders": decoders}
-    write_report(args.out, report)
+    write_report(args.out, report, folders)
     chart(report, args.out.with_suffix(".png"))
 
 
@@ -196,8 +192,7 @@ def chart(report: dict, path: Path) -> None:
     b.set_title(f"throughput, {report['threads']} threads (matmul peak "
                 f"{report['matmul_peak_flops_per_second'] / 1e9:.0f} GFLOP/s)")
     b.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_chart(fig, path)
 
 
 if __name__ == "__main__":

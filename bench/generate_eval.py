@@ -23,14 +23,13 @@ cannot be downloaded here; they are skipped (noted in the output).
 Writes docs/reports/generate_eval[_seedS].json and .png (PSNR and FLIP per method); the
 gallery of generated materials is bench/generate_gallery.py.
 
-    .venv/bin/python bench/generate_eval.py [--seed S] [--checkpoint DIR] [--objects N]
+    python -m bench.generate_eval [--seed S] [--checkpoint DIR] [--objects N]
 """
 from __future__ import annotations
 
 import argparse
 import json
 import math
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,20 +37,18 @@ from pathlib import Path
 import numpy as np
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
-from richmat_addon.core.enhance import baseline, enhance, is_metallic  # noqa: E402
-from richmat_addon.core.maps import EnhancedMaterial, ParamMap  # noqa: E402
-from torch_models.generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural, text  # noqa: E402
-from torch_models.generator import generate as gen  # noqa: E402
-from torch_models.generator.dit import LatentGenerator  # noqa: E402
-from torch_models.generator.encoding import latent_texture  # noqa: E402
-from torch_models.generator.mesh_input import MeshInput  # noqa: E402
-from torch_models.generator.train import CorpusConfig, GeneratorTrainConfig, load_corpus  # noqa: E402
-from torch_models.neural import energy, weights  # noqa: E402
-from torch_models.render.flip import mean_flip  # noqa: E402
-from torch_models.render.tonemap import agx  # noqa: E402
+from bench.common import REPORTS, pyplot, save_chart, write_report
+from richmat_addon.core.enhance import baseline, enhance, is_metallic
+from richmat_addon.core.maps import EnhancedMaterial, ParamMap
+from torch_models.generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural, text
+from torch_models.generator import generate as gen
+from torch_models.generator.dit import LatentGenerator
+from torch_models.generator.encoding import latent_texture
+from torch_models.generator.mesh_input import MeshInput
+from torch_models.generator.train import CorpusConfig, GeneratorTrainConfig, load_corpus
+from torch_models.neural import energy, weights
+from torch_models.render.flip import mean_flip
+from torch_models.render.tonemap import agx
 
 SKIPPED_METRICS = "CLIP-FID, CMMD, LPIPS: skipped (their network weights are not available offline)"
 METHODS = ("generated", "pbr", "procedural", "retrieval")
@@ -166,11 +163,7 @@ def evaluate(obj: HeldOut, model: LatentGenerator, cfg: GeneratorTrainConfig, ar
 
 
 def chart(report: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.4))
     for ax, metric, label in ((axes[0], "psnr", "PSNR vs reference (dB, higher is better)"),
                               (axes[1], "flip", "mean FLIP vs reference (lower is better)")):
@@ -182,9 +175,7 @@ def chart(report: dict, path: Path) -> None:
         ax.set_title(label, fontsize=9)
     fig.suptitle(f"generator on {len(report['objects'])} held-out objects, seed {report['seed']} "
                  f"({report['steps']} steps, {report['views']} views, {report.get('samples', 1)} samples)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_chart(fig, path)
 
 
 def main() -> int:
@@ -203,7 +194,7 @@ def main() -> int:
     args = ap.parse_args()
     torch.set_num_threads(1)
     name = "generate_eval.json" if args.seed == 0 else f"generate_eval_seed{args.seed}.json"
-    out = args.out or REPO / "docs" / "reports" / name
+    out = args.out or REPORTS / name
     model, cfg = gen.load_generator(args.checkpoint)
     objects = [held_out(i, cfg) for i in held_out_indices(args.objects, cfg.corpus.seed)]
     retrieval = Retrieval(cfg.corpus)
@@ -227,8 +218,7 @@ def main() -> int:
               "median_seconds_per_object": float(np.median([r["seconds"] for r in rows])),
               "median_cpu_seconds_per_object": float(np.median([r["cpu_seconds"] for r in rows])),
               "note": SKIPPED_METRICS, "objects": rows}
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(report, indent=1))
+    write_report(out, report, [weights.SHIPPED], args.checkpoint)
     chart(report, out.with_suffix(".png"))
     print(json.dumps({k: report[k] for k in ("overall", "invalid_generated_texels", "targets")}, indent=1))
     print(SKIPPED_METRICS)

@@ -16,29 +16,26 @@ units; 0 when the texture holds exactly what the views said).
   cosine of the prompt's MiniLM embedding to the nearest training caption.
 Base colour is the object's mean (a constant), so every variant gets the same.
 
-    .venv/bin/python bench/generate_failures.py [--checkpoint DIR] [--steps K]
+    python -m bench.generate_failures [--checkpoint DIR] [--steps K]
 """
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 from pathlib import Path
 
 import numpy as np
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
-
-from generate_eval import Retrieval, held_out, held_out_indices  # noqa: E402
-from richmat_addon.core.prompt import prompt_type  # noqa: E402
-from torch_models.generator import generate as gen  # noqa: E402
-from torch_models.generator import DEFAULT_STEPS, text  # noqa: E402
-from torch_models.generator.dit import LatentGenerator  # noqa: E402
-from torch_models.generator.mesh_input import MeshInput  # noqa: E402
-from torch_models.generator.train import GeneratorTrainConfig  # noqa: E402
-from torch_models.generator.views import Mesh, orbit_cameras, render_intrinsics  # noqa: E402
+from bench.common import add_out_argument, pyplot, save_chart, write_report
+from bench.generate_eval import Retrieval, held_out, held_out_indices
+from richmat_addon.core.prompt import prompt_type
+from torch_models.generator import DEFAULT_STEPS, text
+from torch_models.generator import generate as gen
+from torch_models.generator.dit import LatentGenerator
+from torch_models.generator.mesh_input import MeshInput
+from torch_models.generator.train import GeneratorTrainConfig
+from torch_models.generator.views import Mesh, orbit_cameras, render_intrinsics
+from torch_models.neural import weights
 
 ISLAND_CAPS = (None, 1 / 16, 1 / 64, 1 / 256)  # max chart area as a share of the surface (None: xatlas default)
 TUBE_RADII = (0.25, 0.1, 0.04, 0.015)  # torus minor radius, major radius 0.5
@@ -111,7 +108,7 @@ def main() -> int:
     ap.add_argument("--checkpoint", type=Path, default=gen.SHIPPED)
     ap.add_argument("--objects", type=int, default=2)
     ap.add_argument("--steps", type=int, default=DEFAULT_STEPS)
-    ap.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "generate_failures.json")
+    add_out_argument(ap, "generate_failures.json")
     args = ap.parse_args()
     torch.set_num_threads(1)
     model, cfg = gen.load_generator(args.checkpoint)
@@ -153,8 +150,7 @@ def main() -> int:
             similarity = float((captions @ text.embed([prompt])[0]).max())
             report["prompts"].append({"group": group, "prompt": prompt, "type": type_, "warnings": warnings,
                                       "nearest_caption_cosine": similarity})
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1))
+    write_report(args.out, report, [weights.SHIPPED], args.checkpoint)
     plot(report, args.out.with_suffix(".png"))
     print(f"wrote {args.out}")
     return 0
@@ -178,11 +174,7 @@ def _shares(ax, xs: list, rows: list[dict], xlabel: str, log: bool = False) -> N
 
 
 def plot(report: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(10, 7))
     first = report["islands"][0]["object"]
     islands = [r for r in report["islands"] if r["object"] == first]
@@ -203,9 +195,7 @@ def plot(report: dict, path: Path) -> None:
                   [p["prompt"][:38] + (" (warned)" if p["warnings"] else "") for p in prompts], fontsize=6.5)
     ax.set_xlabel("cosine to the nearest training caption (MiniLM)", fontsize=8)
     ax.set_title("prompts in (blue) and outside (red) the vocabulary", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_chart(fig, path)
 
 
 if __name__ == "__main__":

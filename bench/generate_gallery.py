@@ -3,29 +3,28 @@
 Rows: held-out objects (as bench/generate_eval.py picks them). Columns: the PBR
 input, the reference, the generation from the object's own caption, then the same
 object generated from prompts naming other enhancements. Each generation is what
-``generate`` writes (energy guard included), rendered from one view.
+``generate`` writes (energy guard included), rendered from one view. The figure is
+the report: its provenance is in the PNG's text.
 
-    .venv/bin/python bench/generate_gallery.py [--objects N] [--seed S] [--out PNG]
+    python -m bench.generate_gallery [--objects N] [--seed S] [--out PNG]
 """
 from __future__ import annotations
 
 import argparse
-import sys
 import textwrap
 from pathlib import Path
 
 import numpy as np
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
-
-from generate_eval import HeldOut, held_out, held_out_indices, latents_of, render  # noqa: E402
-from richmat_addon.core.enhance import baseline  # noqa: E402
-from torch_models.generator import DEFAULT_STEPS, DEFAULT_VIEWS  # noqa: E402
-from torch_models.generator import generate as gen  # noqa: E402
-from torch_models.generator.dit import LatentGenerator  # noqa: E402
-from torch_models.generator.train import GeneratorTrainConfig  # noqa: E402
+from bench.common import add_out_argument, provenance, pyplot, save_chart
+from bench.generate_eval import HeldOut, held_out, held_out_indices, latents_of, render
+from richmat_addon.core.enhance import baseline
+from torch_models.generator import DEFAULT_STEPS, DEFAULT_VIEWS
+from torch_models.generator import generate as gen
+from torch_models.generator.dit import LatentGenerator
+from torch_models.generator.train import GeneratorTrainConfig
+from torch_models.neural import weights
 
 # Other enhancements, in the captions' own words (Type 0, 1, 2, 4).
 GALLERY_ENDINGS = ("light haze", "heavy haze, heavy dust", "light haze, glossy clearcoat",
@@ -33,13 +32,9 @@ GALLERY_ENDINGS = ("light haze", "heavy haze, heavy dust", "light haze, glossy c
 
 
 def gallery(objects: list[HeldOut], model: LatentGenerator, cfg: GeneratorTrainConfig, seed: int,
-            path: Path) -> None:
+            path: Path, record: dict) -> None:
     """Rows: objects; columns: PBR input, reference, generated from the caption, generated from other prompts."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     size, res, spp = cfg.corpus.texture_size, 160, 32  # one view per cell: afford a clean render
     fig, axes = plt.subplots(len(objects), 3 + len(GALLERY_ENDINGS),
                              figsize=(2.0 * (3 + len(GALLERY_ENDINGS)), 2.25 * len(objects)), squeeze=False)
@@ -61,9 +56,7 @@ def gallery(objects: list[HeldOut], model: LatentGenerator, cfg: GeneratorTrainC
             ax.axis("off")
         row[0].text(-0.05, 0.5, subject.replace(": ", ":\n"), transform=row[0].transAxes, fontsize=7,
                     ha="right", va="center")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_chart(fig, path, record)
 
 
 def main() -> int:
@@ -71,13 +64,12 @@ def main() -> int:
     ap.add_argument("--objects", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0, help="sampling seed")
     ap.add_argument("--checkpoint", type=Path, default=gen.SHIPPED)
-    ap.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "generate_gallery.png")
+    add_out_argument(ap, "generate_gallery.png")
     args = ap.parse_args()
     torch.set_num_threads(1)
     model, cfg = gen.load_generator(args.checkpoint)
     objects = [held_out(i, cfg) for i in held_out_indices(args.objects, cfg.corpus.seed)]
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    gallery(objects, model, cfg, args.seed, args.out)
+    gallery(objects, model, cfg, args.seed, args.out, provenance([weights.SHIPPED], args.checkpoint))
     print(args.out)
     return 0
 

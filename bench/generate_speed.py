@@ -14,24 +14,21 @@ suggested default is the fastest setting within 0.5 dB of the best mean PSNR.
 Averaging samples only pays where one draw's spread is what costs accuracy, which
 a single seed can hide: measure it over several (``--seeds 0,1``).
 
-    .venv/bin/python bench/generate_speed.py [--objects N] [--seeds 0,1] [--sweeps steps,views,samples] [--out FILE]
+    python -m bench.generate_speed [--objects N] [--seeds 0,1] [--sweeps steps,views,samples] [--out FILE]
 """
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
-
-from generate_eval import held_out, held_out_indices, latents_of, psnr, render  # noqa: E402
-from torch_models.generator import generate as gen  # noqa: E402
+from bench.common import add_out_argument, pyplot, save_chart, write_report
+from bench.generate_eval import held_out, held_out_indices, latents_of, psnr, render
+from torch_models.generator import generate as gen
+from torch_models.neural import weights
 
 STEPS = (2, 4, 8, 18, 32)
 VIEWS = (4, 8, 12, 16)
@@ -66,7 +63,7 @@ def main() -> int:
     ap.add_argument("--eval-views", type=int, default=16)
     ap.add_argument("--resolution", type=int, default=64)
     ap.add_argument("--spp", type=int, default=8)
-    ap.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "generate_speed.json")
+    add_out_argument(ap, "generate_speed.json")
     args = ap.parse_args()
     torch.set_num_threads(1)
     model, cfg = gen.load_generator(args.checkpoint)
@@ -97,19 +94,14 @@ def main() -> int:
     report = {"checkpoint": str(args.checkpoint), "objects": [o.asset.asset_id for o in objects],
               "seeds": seeds, "threads": 1, "eval_views": args.eval_views, "tolerance_db": TOLERANCE_DB,
               "chosen": {k: chosen[k] for k in CENTRE}, "rows": rows}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1))
+    write_report(args.out, report, [weights.SHIPPED], args.checkpoint)
     plot(report, args.out.with_suffix(".png"))
     print(f"chosen default: {report['chosen']}")
     return 0
 
 
 def plot(report: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     rows = report["rows"]
     fig, ax = plt.subplots(figsize=(6.4, 3.8))
     for (key, fixed, _), marker in zip(SWEEP_AXES, ("o-", "s--", "^:")):
@@ -134,9 +126,7 @@ def plot(report: dict, path: Path) -> None:
     seeds = ", ".join(map(str, report.get("seeds", [0])))
     ax.set_title(f"generator: steps, views and samples vs accuracy vs time (seed {seeds})", fontsize=10)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_chart(fig, path)
 
 
 if __name__ == "__main__":

@@ -6,33 +6,30 @@ and with f_neu multiplied by a ``GlintPattern`` at every shading point (on the
 unit ball the position is the normal the renderer hands to ``bsdf_at``). The
 bottom row zooms into the highlight.
 
-    python bench/glints_figure.py [--weights RUN] [--resolution 256] [--spp 64]
+    python -m bench.glints_figure [--weights RUN] [--resolution 256] [--spp 64]
 
-Writes docs/reports/glints.png.
+Writes docs/reports/glints.png; the figure is the report: its provenance is in the PNG's text.
 """
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
-
-from neural_failure_modes import enhanced_vector, view_cosines  # noqa: E402
-from richmat_addon.core.preview import PreviewScene  # noqa: E402
-from richmat_addon.core.schema import CHANNEL_SLICES  # noqa: E402
-from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.bsdf import NeuralBsdf  # noqa: E402
-from torch_models.neural.evaluate import BallSetup  # noqa: E402
-from torch_models.neural.fitting import fit_latents  # noqa: E402
-from torch_models.neural.energy import furnace  # noqa: E402
-from torch_models.neural.glints import GlintPattern, Glints  # noqa: E402
-from torch_models.render.ball import render_ball  # noqa: E402
-from torch_models.render.tonemap import agx  # noqa: E402
+from bench.common import add_out_argument, provenance, pyplot, save_chart
+from bench.neural_failure_modes import enhanced_vector, view_cosines
+from richmat_addon.core.preview import PreviewScene
+from richmat_addon.core.schema import CHANNEL_SLICES
+from torch_models.neural import weights
+from torch_models.neural.bsdf import NeuralBsdf
+from torch_models.neural.energy import furnace
+from torch_models.neural.evaluate import BallSetup
+from torch_models.neural.fitting import fit_latents
+from torch_models.neural.glints import GlintPattern, Glints
+from torch_models.render.ball import render_ball
+from torch_models.render.tonemap import agx
 
 BASE_COLOR = np.array([0.95, 0.72, 0.45], np.float32)  # a warm metal (copper-gold)
 ROUGHNESS, ENHANCE_SEED = 0.25, 7
@@ -50,7 +47,7 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=64)
     parser.add_argument("--scale", type=float, default=20.0, help="glint cells per unit length (ball radius 1)")
     parser.add_argument("--strength", type=float, default=0.7)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "glints.png")
+    add_out_argument(parser, "glints.png")
     args = parser.parse_args()
 
     model = weights.load(args.weights)
@@ -66,7 +63,7 @@ def main() -> None:
         return lambda n: NeuralBsdf(model, z, base, scale, None if glints is None else Glints(glints, n))
 
     plain, glinty = render(setup, bsdf_at(None)), render(setup, bsdf_at(pattern))
-    figure(plain, glinty, vector, pattern, args.out)
+    figure(plain, glinty, vector, pattern, args.out, provenance([args.weights]))
 
 
 def zoom_window(image: np.ndarray, level: float = 0.45) -> tuple[int, int, int]:
@@ -81,11 +78,9 @@ def zoom_window(image: np.ndarray, level: float = 0.45) -> tuple[int, int, int]:
     return (*min(corners, key=lambda rc: abs(lum[rc[0]:rc[0] + size, rc[1]:rc[1] + size].mean() - level)), size)
 
 
-def figure(plain: np.ndarray, glinty: np.ndarray, vector: np.ndarray, pattern: GlintPattern, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+def figure(plain: np.ndarray, glinty: np.ndarray, vector: np.ndarray, pattern: GlintPattern, path: Path,
+           record: dict) -> None:
+    plt = pyplot()
     from matplotlib.patches import Rectangle
 
     r0, c0, size = zoom_window(plain)
@@ -103,9 +98,7 @@ def figure(plain: np.ndarray, glinty: np.ndarray, vector: np.ndarray, pattern: G
     fig.suptitle(f"Neural haze material (Type 0, metal, PBR roughness {ROUGHNESS}, alpha_core {alpha:.3g})\n"
                  f"glints: scale {pattern.scale:g}, strength {pattern.strength:g}, "
                  f"multiplier in [{lo:.2f}, {hi:.1f}] with mean 1", fontsize=10)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    save_chart(fig, path, record)
 
 
 if __name__ == "__main__":

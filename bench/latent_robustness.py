@@ -11,7 +11,7 @@ raw and after the energy guard the tool applies to latents it did not fit
 (f_neu scaled by the furnace repair, re-checked with fresh samples). For (b)
 also the FLIP change the perturbation causes on the preview ball.
 
-    python bench/latent_robustness.py [--seed S] [--count N] [--per-type M] [--weights RUN ...] [--out FILE.json]
+    python -m bench.latent_robustness [--seed S] [--count N] [--per-type M] [--weights RUN ...] [--out FILE.json]
 
 ``--weights`` repeats: decoders side by side on the same draws (each in its own
 encoder's box). Target: 100 % valid in both sets as the tool renders them
@@ -27,16 +27,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
-
-from agreement_cases import cases  # noqa: E402
-from common import add_weights_argument, provenance, pyplot, weights_folders, write_report  # noqa: E402
-from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference  # noqa: E402
-from torch_models.neural.fitting import fit_latents  # noqa: E402
-from torch_models.neural.energy import guard  # noqa: E402
-from torch_models.neural.validity import Validity, check_latents, enlarged, training_latent_box  # noqa: E402
+from bench.agreement_cases import cases
+from bench.common import add_out_argument, add_weights_argument, pyplot, save_chart, weights_folders, write_report
+from torch_models.neural import weights
+from torch_models.neural.energy import guard
+from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference
+from torch_models.neural.fitting import fit_latents
+from torch_models.neural.validity import Validity, check_latents, enlarged, training_latent_box
 
 NOISE = 0.05
 ENLARGE = 1.1
@@ -89,7 +86,7 @@ def main() -> None:
     parser.add_argument("--per-type", type=int, default=4, help="fitted materials per type in set (b) (default: 4)")
     parser.add_argument("--steps", type=int, default=400, help="fit steps for set (b)")
     add_weights_argument(parser)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "latent_robustness.json")
+    add_out_argument(parser, "latent_robustness.json")
     args = parser.parse_args()
     folders = weights_folders(args)
 
@@ -103,9 +100,9 @@ def main() -> None:
         block, albedo_a, albedo_b = evaluate(folder, args, drawn, vectors, references, setup)
         decoders.append(block)
         albedos.append((albedo_a, albedo_b))
-    report = {"seed": args.seed, "noise": NOISE, "box_enlargement": ENLARGE, "provenance": provenance(folders),
-              "decoders": decoders, "wall_seconds": time.perf_counter() - start}
-    write_report(args.out, report)
+    report = {"seed": args.seed, "noise": NOISE, "box_enlargement": ENLARGE, "decoders": decoders,
+              "wall_seconds": time.perf_counter() - start}
+    write_report(args.out, report, folders)
     chart(report, albedos, args.out.with_suffix(".png"))
     sys.exit(0 if all(d["passed"] for d in decoders) else 1)
 
@@ -141,8 +138,7 @@ def chart(report: dict, albedos: list[tuple[np.ndarray, np.ndarray]], path: Path
         b.set_xlabel("FLIP vs analytic, fitted latent")
         b.set_ylabel(f"FLIP vs analytic, latent +-{report['noise']}")
         b.set_title(f"{d['kind']}: median FLIP change {d['flip_change']['median']:.4f}", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_chart(fig, path)
 
 
 if __name__ == "__main__":

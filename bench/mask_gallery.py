@@ -1,31 +1,27 @@
 """Render every procedural mask, tiled 2x2 to show that the seams vanish.
 
-    python bench/mask_gallery.py [--out docs/reports/mask_gallery.png] [--size 256] [--seed 0]
+    python -m bench.mask_gallery [--out docs/reports/mask_gallery.png] [--size 256] [--seed 0]
+
+The figure is the report: its provenance is in the PNG's text.
 """
 from __future__ import annotations
 
 import argparse
-import sys
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from richmat_addon.core import masks  # noqa: E402
+from bench.common import add_out_argument, provenance, pyplot, save_chart
+from richmat_addon.core import masks
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("docs/reports/mask_gallery.png"))
+    add_out_argument(parser, "mask_gallery.png")
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
 
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     every = {**{f"dust: {k}": f for k, f in masks.DUST_MASKS.items()},
              **{f"coat damage: {k}": f for k, f in masks.DAMAGE_MASKS.items()}}
     fig, axes = plt.subplots(1, len(every), figsize=(3.2 * len(every), 3.5))
@@ -37,8 +33,7 @@ def main() -> None:
         ax.set_title(title, fontsize=9)
         ax.axis("off")
     fig.suptitle("procedural masks, each tiled 2x2 (red dots: tile seams)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(args.out, dpi=100)
+    save_chart(fig, args.out, provenance())
 
 
 if __name__ == "__main__":

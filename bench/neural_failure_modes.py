@@ -22,7 +22,7 @@ spatial filter mixes the outermost band with the silhouette), and the relative
 error of the directional albedo of f_neu (decoder against analytic, same
 Monte Carlo samples) against theta_i (no image in between).
 
-    python bench/neural_failure_modes.py [--seed S] [--quick] [--weights RUN ...]
+    python -m bench.neural_failure_modes [--seed S] [--quick] [--weights RUN ...]
 
 ``--weights`` repeats: the decoders are measured side by side on the same sweep
 points and the same analytic renders. Writes docs/reports/neural_failure_modes.json and
@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,29 +40,25 @@ from pathlib import Path
 import numpy as np
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
-
-from common import add_weights_argument, provenance, pyplot, weights_folders, write_report  # noqa: E402
-from richmat_addon.core.enhance import enhance  # noqa: E402
-from richmat_addon.core.maps import ParamMap, PbrInputs  # noqa: E402
-from richmat_addon.core.preview import PreviewScene  # noqa: E402
-from richmat_addon.core.schema import CHANNEL_SLICES  # noqa: E402
-from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors  # noqa: E402
-from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.evaluate import (BallSetup, Comparison, compare, render_neural,  # noqa: E402
-                                          render_reference, side_by_side)
-from torch_models.neural.energy import REFIT_STEPS, fit_bounded  # noqa: E402
-from torch_models.neural.fitting import fit_latents  # noqa: E402
-from torch_models.neural.weights import NeuralModel  # noqa: E402
-from torch_models.render.camera import hit_sphere, primary_rays  # noqa: E402
+from bench.common import (FLIP_CONVENTION, TARGET_WORST, add_out_argument, add_weights_argument, pyplot, save_chart,
+                          target_lines, weights_folders, write_report)
+from richmat_addon.core.enhance import enhance
+from richmat_addon.core.maps import ParamMap, PbrInputs
+from richmat_addon.core.preview import PreviewScene
+from richmat_addon.core.schema import CHANNEL_SLICES
+from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors
+from torch_models.neural import weights
+from torch_models.neural.energy import REFIT_STEPS, fit_bounded
+from torch_models.neural.evaluate import BallSetup, Comparison, compare, render_neural, render_reference, side_by_side
+from torch_models.neural.fitting import fit_latents
+from torch_models.neural.weights import NeuralModel
+from torch_models.render.camera import hit_sphere, primary_rays
 
 FULL = {"roughness": (0.02, 0.05, 0.1, 0.2, 0.4, 0.7, 1.0), "metalness": (0.0, 0.25, 0.4, 0.5, 0.6, 0.75, 1.0),
         "ior": (1.3, 1.4, 1.5, 1.6, 1.7, 1.8)}
 QUICK = {"roughness": (0.02, 0.1, 0.4, 1.0), "metalness": (0.0, 0.5, 1.0), "ior": (1.3, 1.55, 1.8)}
 VIEW_BANDS = (0.0, 0.1, 0.2, 0.35, 0.5, 0.7, 0.85, 1.0)  # n.v band edges on the ball
 ALBEDO_ANGLES = (0.0, 30.0, 45.0, 60.0, 70.0, 80.0, 85.0, 88.0)  # theta_i, degrees
-TARGET_MEDIAN, TARGET_WORST = 0.05, 0.12  # Table 1 targets, for scale
 
 
 @dataclass(frozen=True)
@@ -184,7 +179,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--quick", action="store_true", help="fewer points, smaller and noisier balls (< 2 min)")
     add_weights_argument(parser)
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "neural_failure_modes.json")
+    add_out_argument(parser, "neural_failure_modes.json")
     parser.add_argument("--steps", type=int, help="fit steps (all sweep points fitted together)")
     args = parser.parse_args()
     folders = weights_folders(args)
@@ -204,11 +199,10 @@ def main() -> None:
         print(f"{block['kind']} worst: {block['worst']['sweep']} {block['worst']['value']} "
               f"FLIP {block['worst']['flip']:.4f}")
     report = {"seed": args.seed, "quick": args.quick, "resolution": resolution, "spp": spp, "fit_steps": steps,
-              "provenance": provenance(folders),
-              "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
+              "flip_convention": FLIP_CONVENTION,
               "base_color": points[0].base_color.tolist(), "decoders": decoders,
               "wall_seconds": time.perf_counter() - start}
-    write_report(args.out, report)
+    write_report(args.out, report, folders)
     chart(report, worst, args.out.with_suffix(".png"))
     print(f"{report['wall_seconds']:.0f} s")
 
@@ -239,8 +233,7 @@ def chart(report: dict, worst: list[Comparison], path: Path) -> None:
     panels[2].set(xlabel="metalness", title="Metalness")
     panels[3].set(xlabel="view angle theta (deg)", title="Grazing angle (FLIP per view band on the ball)")
     for ax in panels:
-        ax.axhline(TARGET_MEDIAN, ls="--", color="gray", lw=0.8)
-        ax.axhline(TARGET_WORST, ls=":", color="gray", lw=0.8)
+        target_lines(ax, labelled=False)
         ax.set_ylim(bottom=0)
         ax.legend(fontsize=6)
     for k, (d, comparison) in enumerate(zip(decoders, worst)):
@@ -252,8 +245,7 @@ def chart(report: dict, worst: list[Comparison], path: Path) -> None:
                         f"FLIP {w['flip']:.3f}: analytic | neural | FLIP map", fontsize=9)
     fig.suptitle(f"Where the neural material breaks down (Type 0 base, seed {report['seed']}, "
                  f"{report['resolution']} px, {report['spp']} spp; dashed 0.05, dotted 0.12)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    save_chart(fig, path)
 
 
 if __name__ == "__main__":

@@ -10,8 +10,8 @@ the same materials, each with its FLIP and its Cycles render time. Writes the
 JSON and, beside it, a PNG sheet (Cycles | torch | FLIP map, one row per type and
 weights folder).
 
-    python bench/preview_agreement.py [--weights RUN ...] [--resolution 48] [--spp 1024]
-        [--cycles-spp 384] [--directions 8] [--out docs/preview_agreement.json]
+    python -m bench.preview_agreement [--weights RUN ...] [--resolution 48] [--spp 1024]
+        [--cycles-spp 384] [--directions 8] [--out docs/reports/preview_agreement.json]
 
 Target (issue 4): mean FLIP <= 0.05.
 """
@@ -19,9 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
-import sys
 import tempfile
 import textwrap
 import time
@@ -30,19 +27,16 @@ from pathlib import Path
 import numpy as np
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO), str(REPO / "bench")]
-
-from agreement import contact_sheet  # noqa: E402
-from agreement_cases import cases  # noqa: E402
-from common import add_weights_argument, provenance, weights_folders, write_report  # noqa: E402
-from richmat_addon.core.schema import CHANNEL_SLICES  # noqa: E402
-from torch_models.neural import weights  # noqa: E402
-from torch_models.neural.bsdf import NeuralBsdf  # noqa: E402
-from torch_models.neural.evaluate import DEFAULT_PROBE, BallSetup  # noqa: E402
-from torch_models.render.ball import render_ball  # noqa: E402
-from torch_models.render.flip import flip_map, mean_flip  # noqa: E402
-from torch_models.render.tonemap import agx  # noqa: E402
+from bench.agreement_cases import cases
+from bench.common import (FLIP_CONVENTION, add_out_argument, add_weights_argument, contact_sheet, run_python,
+                          weights_folders, write_report)
+from richmat_addon.core.schema import CHANNEL_SLICES
+from torch_models.neural import weights
+from torch_models.neural.bsdf import NeuralBsdf
+from torch_models.neural.evaluate import DEFAULT_PROBE, BallSetup
+from torch_models.render.ball import render_ball
+from torch_models.render.flip import flip_map, mean_flip
+from torch_models.render.tonemap import agx
 
 TARGET = 0.05
 
@@ -114,9 +108,7 @@ def cycles_side(folder: Path, job_cases: list[dict], args: argparse.Namespace, t
            "cases": job_cases, "out": str(tmp)}
     (tmp / "job.json").write_text(json.dumps(job))
     (tmp / "preview_cycles_job.py").write_text(textwrap.dedent(CYCLES))
-    subprocess.run([sys.executable, str(tmp / "preview_cycles_job.py"), str(tmp / "job.json")],
-                   check=True, capture_output=True,
-                   env={**os.environ, "PYTHONPATH": str(REPO), "BLENDER_USER_RESOURCES": str(tmp)})
+    run_python([str(tmp / "preview_cycles_job.py"), str(tmp / "job.json")], tmp)
     return json.loads((tmp / "seconds.json").read_text())
 
 
@@ -151,7 +143,7 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=1024, help="torch renderer samples per pixel")
     parser.add_argument("--cycles-spp", type=int, default=384)
     parser.add_argument("--directions", type=int, default=8, help="shader directions per shading point")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "preview_agreement.json")
+    add_out_argument(parser, "preview_agreement.json")
     args = parser.parse_args()
     folders = weights_folders(args)
 
@@ -159,12 +151,11 @@ def main() -> None:
     setup = BallSetup.default(args.resolution, args.spp, 0)
     sheet: list = []
     runs = [measure(folder, setup, args, sheet) for folder in folders]
-    report = {"provenance": provenance(folders), "resolution": args.resolution, "torch_spp": args.spp,
-              "cycles_spp": args.cycles_spp, "directions": args.directions,
-              "flip_convention": "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree",
+    report = {"resolution": args.resolution, "torch_spp": args.spp, "cycles_spp": args.cycles_spp,
+              "directions": args.directions, "flip_convention": FLIP_CONVENTION,
               "target": TARGET, "passed": all(r["passed"] for r in runs), "runs": runs,
               "wall_seconds": time.perf_counter() - start}
-    write_report(args.out, report)
+    write_report(args.out, report, folders)
     contact_sheet(sheet, args.out.with_suffix(".png"))
     for r in runs:
         print(f"{r['kind']} {r['weights']}: mean FLIP {r['mean_flip']:.4f} (target {TARGET}), "

@@ -18,7 +18,7 @@ they are the same for both sides. Costs on 2 shared CPU cores forced small
 settings (defaults: 128 x 128, 4 frames, 2 assets); the report says which.
 Writes docs/reports/render_speed.json and docs/reports/render_speed.png.
 
-    .venv/bin/python bench/render_speed.py [--assets A.glb B.glb] [--resolution 128] [--frames 4]
+    python -m bench.render_speed [--assets A.glb B.glb] [--resolution 128] [--frames 4]
 """
 from __future__ import annotations
 
@@ -32,8 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+from bench.common import REPO, add_out_argument, child_env, pyplot, save_chart, write_report
 
 SHARED_MODELS = REPO.parent / "shared" / "assets" / "models"
 DEFAULT_ASSETS = [SHARED_MODELS / "Suzanne.glb", SHARED_MODELS / "WaterBottle.glb"]
@@ -60,7 +59,7 @@ def parse(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--probe", type=Path, default=DEFAULT_PROBE)
     p.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     p.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "richmat_render_speed")
-    p.add_argument("--out", type=Path, default=REPO / "docs" / "reports" / "render_speed.json")
+    add_out_argument(p, "render_speed.json")
     return p.parse_args(argv)
 
 
@@ -68,7 +67,7 @@ def _run(cmd: list[str], log: Path) -> float:
     """Run a child to completion; its wall time. Raise with the log tail on failure."""
     from batch import runner
 
-    out = runner.run(cmd, 3600, log, env=dict(os.environ, PYTHONPATH=str(REPO)))
+    out = runner.run(cmd, 3600, log, env=child_env())
     if not out.ok:
         raise RuntimeError(f"{cmd[:4]}... {out.describe()}:\n{out.stderr_tail}")
     return out.seconds
@@ -129,7 +128,7 @@ def render_naive(prepared: Path, out: Path, samples: int, threshold: float, args
                  ) -> tuple[float, list[np.ndarray]]:
     """The baseline: one process, beauty then one full render per intrinsic map."""
     _copy_prepared(prepared, out)
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--naive-job", str(out), prepared.name,
+    cmd = [sys.executable, "-m", "bench.render_speed", "--naive-job", str(out), prepared.name,
            str(args.frames), str(args.resolution), str(samples), str(threshold), str(args.probe),
            str(args.threads)]
     seconds = _run(cmd, out / "logs" / "naive")
@@ -201,10 +200,7 @@ def mean_flip(reference: list[np.ndarray], test: list[np.ndarray]) -> float:
 
 
 def chart(report: dict, path: Path) -> None:
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.8))
     for threshold in SWEEP_THRESHOLDS:
         rows = [r for r in report["sweep"] if r["adaptive_threshold"] == threshold]
@@ -226,8 +222,7 @@ def chart(report: dict, path: Path) -> None:
     bx.set_ylabel("assets per hour (render stage)")
     bx.set_title(f"throughput at the default: {t['speedup']:.2f}x "
                  f"(beauty FLIP {t['ours_beauty_flip']:.4f} vs {t['naive_beauty_flip']:.4f})")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_chart(fig, path)
 
 
 def main(argv: list[str]) -> int:
@@ -279,8 +274,7 @@ def main(argv: list[str]) -> int:
                         "15-21 s/frame at 64 spp on these cores (batch-notes 4.3)"},
               "rule": f"fastest swept setting with mean FLIP <= best swept FLIP + {args.flip_slack}",
               "sweep": sweep, "default": default, "throughput": throughput}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=1))
+    write_report(args.out, report, [args.decoder])
     chart(report, args.out.with_suffix(".png"))
     print(json.dumps({"default": default, "throughput": throughput}, indent=1))
     return 0

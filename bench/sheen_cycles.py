@@ -6,7 +6,7 @@ sphere, seen by an orthographic camera (every pixel has the same view direction
 f(wi, wo) cos(theta_o) times the sun's strength, without noise). One render per
 sun direction.
 
-    python bench/sheen_cycles.py JOB.json
+    python -m bench.sheen_cycles JOB.json
 JOB.json: {"roughness": [...], "suns": [[x, y, z], ...], "px_per_unit": P, "out": DIR}
 writes DIR/sun_<k>.exr and DIR/layout.json (sphere centres in pixels, radius in pixels).
 """
@@ -17,16 +17,13 @@ import math
 import sys
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(REPO)]
+import bpy
+from mathutils import Vector
 
-import bpy  # noqa: E402
-from mathutils import Vector  # noqa: E402
-
-from richmat_addon.blender import cycles_builder, preview_scene  # noqa: E402
-from richmat_addon.core import graph  # noqa: E402
-from richmat_addon.core.maps import EnhancedMaterial, ParamMap  # noqa: E402
-from richmat_addon.core.schema import PARAMS  # noqa: E402
+from richmat_addon.blender import cycles_builder, preview_scene
+from richmat_addon.core import graph
+from richmat_addon.core.maps import EnhancedMaterial, ParamMap
+from richmat_addon.core.schema import PARAMS
 
 COLUMNS = 8
 SPACING = 2.2  # sphere centres, in units of the radius 1
@@ -104,5 +101,4 @@ def main(job_path: Path) -> None:
 
 
 if __name__ == "__main__":
-    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
-    main(Path(argv[0]))
+    main(Path(sys.argv[1]))

@@ -1,15 +1,10 @@
 """The sweeps of bench/neural_failure_modes.py move one parameter, monotonically, and nothing else."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-
-from neural_failure_modes import QUICK, sweeps  # noqa: E402
-from richmat_addon.core.schema import CHANNEL_SLICES  # noqa: E402
+from bench.neural_failure_modes import QUICK, sweeps
+from richmat_addon.core.schema import CHANNEL_SLICES
 
 
 def _channel(points: list, name: str) -> np.ndarray:

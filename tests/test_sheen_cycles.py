@@ -8,18 +8,14 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "bench"))
-
-import calibrate_sheen as cal  # noqa: E402
-from torch_models.brdf import lobes, tables  # noqa: E402
+from bench import calibrate_sheen as cal
+from torch_models.brdf import lobes, tables
 
 
 def _measure(blender_run, folder: Path, roughness: list[float], suns: np.ndarray) -> dict:
@@ -28,8 +24,8 @@ def _measure(blender_run, folder: Path, roughness: list[float], suns: np.ndarray
                                "out": str(folder)}))
     blender_run(f"""
         import runpy, sys
-        sys.argv = ["sheen_cycles.py", {str(job)!r}]
-        runpy.run_path({str(REPO / 'bench' / 'sheen_cycles.py')!r}, run_name="__main__")
+        sys.argv = ["sheen_cycles", {str(job)!r}]
+        runpy.run_module("bench.sheen_cycles", run_name="__main__")
     """)
     import OpenImageIO as oiio
 
