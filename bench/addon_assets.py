@@ -51,9 +51,11 @@ SHEET_COLUMNS = (("original", "as imported"), ("uplift", "1 Uplift"), ("bake", "
 PIPELINE = r'''
 import math
 from mathutils import Vector
-from bl_ext.user_default.richmat.blender import preview_scene, uplift
+from bl_ext.user_default.richmat.blender import uplift
 from bl_ext.user_default.richmat.core import neural_folder
-from bl_ext.user_default.richmat.core.preview import PreviewScene
+# The preview scene's setup is not part of the extension (no operator uses it): from the repository.
+from richmat_addon.blender import preview_scene
+from richmat_addon.core.preview import PreviewScene
 
 OUT, RENDERS = Path(OUT), Path(RENDERS)
 RENDERS.mkdir(parents=True, exist_ok=True)
