@@ -120,7 +120,7 @@ OTHER = "b" * 64
 
 
 def full(decoders: dict, **extra) -> dict:
-    return {"provenance": {"git_commit": "0" * 40, "command": "python bench/x.py", "date": "2026-01-01",
+    return {"provenance": {"git_commit": "0" * 40, "command": "python -m bench.x", "date": "2026-01-01",
                            "machine": {}, "decoder_sha256": decoders, **extra}}
 
 
