@@ -148,14 +148,14 @@ pbr_source = importlib.import_module(MODULE + ".blender.pbr_source")
 cost = {{"decoded": [], "blender_reads": 0, "enhanced": [], "rasterised": []}}
 real = (pbr_source.image_pixels, pbr_source._read_with_blender, uplift.enhance, uplift.mesh_maps.world_maps)
 
-def image_pixels(image, max_size=None):
-    px = real[0](image, max_size)
+def image_pixels(image, max_size=None, notes=None):
+    px = real[0](image, max_size, notes)
     cost["decoded"].append(list(px.shape[:2]))
     return px
 
-def read_with_blender(image, max_size):
+def read_with_blender(image):
     cost["blender_reads"] += 1
-    return real[1](image, max_size)
+    return real[1](image)
 
 def enhance(pbr, *args, **kwargs):
     cost["enhanced"].append(sorted({{tuple(m.shape) for m in (pbr.base_color, pbr.roughness, pbr.metalness)}}))

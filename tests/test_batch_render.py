@@ -106,7 +106,7 @@ def test_tiny_batch_renders_good_assets_and_reports_bad_ones(tmp_path: Path) -> 
     assert done == {"painted cube ünï.obj", "no_uvs.stl", "trap.blend"}
     notes = records["painted cube ünï.obj"]["notes"]
     assert any("downscaled from 1024x1024 to 16x16" in n for n in notes), notes
-    assert any("missing texture" in n and "gone.png" in n for n in notes), notes
+    assert any("is missing" in n and "gone.png" in n and "socket value used" in n for n in notes), notes
     assert any("unwrapped with xatlas" in n for n in records["no_uvs.stl"]["notes"])
     assert not list(tmp_path.glob("autoexec_ran*"))  # neither the driver nor the text block ran
 

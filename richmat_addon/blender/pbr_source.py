@@ -9,6 +9,12 @@ Supported layouts of each of Base Color, Roughness and Metallic:
 Anything else (noise, ramps, vertex colours...) is a procedural input: the
 enhancement needs per-texel values, so the user must bake it to an image first.
 
+One reader serves both callers, with a policy: the add-on reads ``strict`` (an
+input it cannot follow is an ``InputProblem`` naming the material, the socket and
+the fix, before anything changes); the farm reads ``lenient`` (that input keeps
+its socket's own value and ``PbrSources.notes`` says what was dropped), because
+one odd material must not stop a batch.
+
 Pixels come from the image file through OpenImageIO (Blender's bundled copy),
 or through ``Image.pixels.foreach_get`` for packed and generated images: whole
 arrays, no per-pixel Python. Images tagged sRGB are linearised here, as Cycles
@@ -18,15 +24,18 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
+from typing import Literal
 
 import bpy
 import numpy as np
 
+from ..core.colour import srgb_to_linear
 from ..core.maps import ParamMap, PbrInputs
 from .osl_env import prefer_blender_bundled_modules
 
 INPUTS = ("Base Color", "Roughness", "Metallic")
 _CHANNELS = {"Red": 0, "Green": 1, "Blue": 2}
+Policy = Literal["strict", "lenient"]
 
 
 class InputProblem(ValueError):
@@ -50,8 +59,9 @@ class Source:
 @dataclass
 class PbrSources:
     material: bpy.types.Material
-    principled: bpy.types.ShaderNodeBsdfPrincipled
+    principled: bpy.types.ShaderNodeBsdfPrincipled | None  # None: a lenient read of a material without one
     inputs: dict[str, Source] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)  # what a lenient read dropped, what load_pbr downscaled
 
     def image_nodes(self) -> list[bpy.types.ShaderNodeTexImage]:
         seen: dict[str, bpy.types.ShaderNodeTexImage] = {}
@@ -65,18 +75,22 @@ class PbrSources:
         return bool(self.image_nodes())
 
 
+def _principled_nodes(material: bpy.types.Material) -> list[bpy.types.ShaderNodeBsdfPrincipled]:
+    nodes = material.node_tree.nodes if material.node_tree is not None else []
+    return [n for n in nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"]
+
+
 def find_principled(material: bpy.types.Material) -> bpy.types.ShaderNodeBsdfPrincipled:
     """The Principled BSDF feeding the active material output (or the only one)."""
     if material.node_tree is None:
         raise InputProblem(f"material {material.name!r} has no node tree (no Principled BSDF)")
-    nodes = material.node_tree.nodes
-    outputs = [n for n in nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+    outputs = [n for n in material.node_tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
     output = next((n for n in outputs if n.is_active_output), outputs[0] if outputs else None)
     if output is not None and output.inputs["Surface"].is_linked:
         node = _skip_reroutes(output.inputs["Surface"].links[0].from_node)
         if node.bl_idname == "ShaderNodeBsdfPrincipled":
             return node
-    principled = [n for n in nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"]
+    principled = _principled_nodes(material)
     if len(principled) == 1:
         return principled[0]
     raise InputProblem(f"material {material.name!r} has no Principled BSDF connected to its output"
@@ -104,9 +118,8 @@ def _socket(node: bpy.types.Node, identifier: str) -> bpy.types.NodeSocket:
     return next(s for s in node.inputs if s.identifier == identifier)
 
 
-def _constant_of(socket: bpy.types.NodeSocket) -> tuple[float, ...] | None:
-    if socket.is_linked:
-        return None
+def _value(socket: bpy.types.NodeSocket) -> tuple[float, ...]:
+    """The socket's own value (what Cycles uses when nothing is linked)."""
     value = socket.default_value
     return tuple(float(x) for x in value[:3]) if hasattr(value, "__len__") else (float(value),)
 
@@ -114,7 +127,7 @@ def _constant_of(socket: bpy.types.NodeSocket) -> tuple[float, ...] | None:
 def _trace(material: bpy.types.Material, name: str, socket: bpy.types.NodeSocket) -> Source:
     """Follow one input upstream through the supported layouts."""
     if not socket.is_linked:
-        return Source(constant=_constant_of(socket))
+        return Source(constant=_value(socket))
     factor: tuple[float, ...] = (1.0,)
     node, out = _upstream(socket)
     if node.bl_idname == "ShaderNodeMath" and node.operation == "MULTIPLY":
@@ -129,7 +142,7 @@ def _trace(material: bpy.types.Material, name: str, socket: bpy.types.NodeSocket
                                "only RGB channels of a packed map are supported")
         channel = _CHANNELS[out.name]
         if not node.inputs[0].is_linked:
-            return Source(constant=(_constant_of(node.inputs[0])[channel] * factor[0],))
+            return Source(constant=(_value(node.inputs[0])[channel] * factor[0],))
         node, out = _upstream(node.inputs[0])
     if node.bl_idname != "ShaderNodeTexImage":
         raise InputProblem(f"{material.name!r}: {name} is fed by the procedural node {node.name!r} "
@@ -150,17 +163,47 @@ def _factor_branch(material: bpy.types.Material, name: str, node: bpy.types.Node
         raise InputProblem(f"{material.name!r}: {name} is computed by {node.name!r} from two "
                            "textures; bake it to one image texture first")
     up, out = _upstream(linked[0])
-    return up, out, _constant_of(constant[0])
+    return up, out, _value(constant[0])
 
 
-def read_sources(material: bpy.types.Material) -> PbrSources:
-    principled = find_principled(material)
-    sources = PbrSources(material, principled)
+def read_sources(material: bpy.types.Material, policy: Policy = "strict") -> PbrSources:
+    """Where Base Color, Roughness and Metallic come from, under ``policy`` (see the module notes).
+
+    Lenient fallbacks: an input that cannot be followed, or whose image cannot be
+    read, keeps its socket's value; with several Principled BSDFs and none on the
+    output, the first is read; with none, the viewport colour, roughness and metallic.
+    """
+    notes: list[str] = []
+    try:
+        principled = find_principled(material)
+    except InputProblem as problem:
+        candidates = _principled_nodes(material)
+        principled = candidates[0] if candidates else None
+        _fall_back(policy, problem, f"read {principled.name!r}" if principled else
+                   "viewport colour, roughness and metallic used", notes)
+        if principled is None:
+            viewport = {"Base Color": tuple(material.diffuse_color[:3]), "Roughness": (material.roughness,),
+                        "Metallic": (material.metallic,)}
+            return PbrSources(material, None, {k: Source(constant=v) for k, v in viewport.items()}, notes)
+    sources = PbrSources(material, principled, notes=notes)
     for name in INPUTS:
-        sources.inputs[name] = _trace(material, name, principled.inputs[name])
-    for node in sources.image_nodes():
-        check_image(material, node)
+        socket = principled.inputs[name]
+        try:
+            source = _trace(material, name, socket)
+            if source.image_node is not None:
+                check_image(material, source.image_node)
+        except InputProblem as problem:
+            _fall_back(policy, problem, f"{name} socket value used", notes)
+            source = Source(constant=_value(socket))
+        sources.inputs[name] = source
     return sources
+
+
+def _fall_back(policy: Policy, problem: InputProblem, fallback: str, notes: list[str]) -> None:
+    """Strict: raise the problem. Lenient: note it and what replaces the input."""
+    if policy == "strict":
+        raise problem
+    notes.append(f"{problem} ({fallback})")
 
 
 def check_image(material: bpy.types.Material, node: bpy.types.ShaderNodeTexImage) -> None:
@@ -191,10 +234,6 @@ def check_image(material: bpy.types.Material, node: bpy.types.ShaderNodeTexImage
                            f"({bpy.path.abspath(image.filepath) or 'no file'}); replace the file")
 
 
-def _srgb_to_linear(x: np.ndarray) -> np.ndarray:
-    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
-
-
 def _file_of(image: bpy.types.Image) -> str | None:
     """The image's file when Blender would read it from disk (not packed, not generated)."""
     if image.source != "FILE" or image.packed_file is not None:
@@ -213,8 +252,8 @@ def _open_file(path: str):
     return oiio.ImageInput.open(path)
 
 
-def _read_with_oiio(path: str, max_size: int | None) -> np.ndarray | None:
-    """(H, W, C) float32 of the file's stored values, every k-th texel; None if it cannot be read.
+def _read_with_oiio(path: str) -> np.ndarray | None:
+    """(H, W, C) stored values of the file (uint8 or float32); None if it cannot be read.
 
     Reading the file directly is 4-5x faster than Blender's decode plus
     ``foreach_get`` (67 million floats for a 4K RGBA image).
@@ -230,10 +269,15 @@ def _read_with_oiio(path: str, max_size: int | None) -> np.ndarray | None:
     inp.close()
     if data is None:
         return None
-    data = np.asarray(data).reshape(spec.height, spec.width, spec.nchannels)
-    step = _step(spec.width, spec.height, max_size)
-    data = data[::step, ::step]
-    return data.astype(np.float32) / 255.0 if byte else np.ascontiguousarray(data, np.float32)
+    return np.asarray(data).reshape(spec.height, spec.width, spec.nchannels)
+
+
+def _read_with_blender(image: bpy.types.Image) -> np.ndarray:
+    """Packed or generated images: Blender's pixels (float32, top row first)."""
+    w, h = image.size
+    flat = np.empty(w * h * image.channels, np.float32)
+    image.pixels.foreach_get(flat)
+    return flat.reshape(h, w, image.channels)[::-1]
 
 
 def _step(w: int, h: int, max_size: int | None) -> int:
@@ -243,24 +287,40 @@ def _step(w: int, h: int, max_size: int | None) -> int:
     return step
 
 
-def _read_with_blender(image: bpy.types.Image, max_size: int | None) -> np.ndarray:
-    """Packed or generated images: Blender's pixels, bottom row first, every k-th texel."""
-    w, h = image.size
-    flat = np.empty(w * h * image.channels, np.float32)
-    image.pixels.foreach_get(flat)
-    step = _step(w, h, max_size)
-    return flat.reshape(h, w, image.channels)[::-1][::step, ::step]
+def _downsample(px: np.ndarray, max_size: int | None) -> np.ndarray:
+    """float32 means of k x k texel blocks, k the smallest power of two that fits ``max_size``.
+
+    Block means keep each map's average, which picking every k-th texel would
+    alias away; they average stored values, as Blender's ``Image.scale`` does.
+    """
+    h, w = px.shape[:2]
+    k = _step(w, h, max_size)
+    if k == 1:
+        return px.astype(np.float32)
+    rows, cols = np.arange(0, h, k), np.arange(0, w, k)
+    sums = np.add.reduceat(np.add.reduceat(px, rows, axis=0, dtype=np.float32), cols, axis=1)
+    counts = np.minimum(k, h - rows)[:, None] * np.minimum(k, w - cols)[None, :]
+    return sums / counts[..., None].astype(np.float32)
 
 
-def image_pixels(image: bpy.types.Image, max_size: int | None = None) -> np.ndarray:
+def image_pixels(image: bpy.types.Image, max_size: int | None = None,
+                 notes: list[str] | None = None) -> np.ndarray:
     """(H, W, 4) float32, top row first (numpy convention), linear where the image is sRGB.
 
-    ``max_size`` keeps every k-th texel (k a power of two) so the longer side fits.
+    ``max_size`` averages k x k blocks (k a power of two) so the longer side fits;
+    ``notes`` gets a line when it does.
     """
     path = _file_of(image)
-    px = _read_with_oiio(path, max_size) if path else None
-    if px is None:
-        px = _read_with_blender(image, max_size)
+    stored = _read_with_oiio(path) if path else None
+    from_file = stored is not None
+    if stored is None:
+        stored = _read_with_blender(image)
+    px = _downsample(stored, max_size)
+    if stored.dtype == np.uint8:
+        px /= 255.0
+    if notes is not None and px.shape != stored.shape:
+        notes.append(f"texture {image.name!r} downscaled from {stored.shape[1]}x{stored.shape[0]} "
+                     f"to {px.shape[1]}x{px.shape[0]}")
     if px.shape[2] == 1:  # grey
         px = np.repeat(px, 3, axis=2)
     elif px.shape[2] == 2:  # grey + alpha
@@ -268,18 +328,20 @@ def image_pixels(image: bpy.types.Image, max_size: int | None = None) -> np.ndar
     if px.shape[2] == 3:
         px = np.concatenate([px, np.ones((*px.shape[:2], 1), np.float32)], 2)
     px = np.ascontiguousarray(px[..., :4], np.float32)
-    if image.colorspace_settings.name == "sRGB":
-        px[..., :3] = _srgb_to_linear(px[..., :3])
+    # Blender's own float buffers are scene-linear already; files and byte buffers hold the encoded values
+    if image.colorspace_settings.name == "sRGB" and (from_file or not image.is_float):
+        px[..., :3] = srgb_to_linear(px[..., :3])
     return px
 
 
-def _map(source: Source, channels: int, cache: dict[str, np.ndarray], max_size: int | None) -> ParamMap:
+def _map(source: Source, channels: int, cache: dict[str, np.ndarray], max_size: int | None,
+         notes: list[str]) -> ParamMap:
     if source.constant is not None:
         value = np.asarray(source.constant[:channels], np.float32)
         return ParamMap(np.resize(value, channels))
     image = source.image
     if image.name not in cache:
-        cache[image.name] = image_pixels(image, max_size)
+        cache[image.name] = image_pixels(image, max_size, notes)
     px = cache[image.name]
     values = px[..., :3] if source.channel is None else px[..., source.channel:source.channel + 1]
     if channels == 1 and values.shape[-1] == 3:  # a colour image into a float socket: Blender's luminance
@@ -289,10 +351,11 @@ def _map(source: Source, channels: int, cache: dict[str, np.ndarray], max_size: 
 
 
 def load_pbr(sources: PbrSources, max_size: int | None = None) -> PbrInputs:
-    """The material's PBR inputs as maps (textures stay textures, constants stay constants)."""
+    """The material's PBR inputs as maps (textures stay textures, constants stay constants).
+
+    Each image is read once; a downscaled one is noted in ``sources.notes``.
+    """
     cache: dict[str, np.ndarray] = {}
-    inputs = sources.inputs
-    return PbrInputs(sources.material.name,
-                     _map(inputs["Base Color"], 3, cache, max_size),
-                     _map(inputs["Roughness"], 1, cache, max_size),
-                     _map(inputs["Metallic"], 1, cache, max_size))
+    maps = [_map(sources.inputs[name], channels, cache, max_size, sources.notes)
+            for name, channels in zip(INPUTS, (3, 1, 1))]
+    return PbrInputs(sources.material.name, *maps)

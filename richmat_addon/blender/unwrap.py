@@ -1,10 +1,18 @@
 """A UV map for meshes that have none, with xatlas (charts packed without overlap).
 
+One unwrapper for the add-on's Unwrap UVs and the farm. xatlas charts
+triangles: a face of more than three corners whose triangles land in two charts
+shares corners between them, and those corners can hold only one chart's UVs,
+so such a face is stretched across the gap. The farm triangulates first
+(``triangulate=True``), which makes every face a chart triangle and the atlas
+exact; the add-on keeps the user's topology.
+
 xatlas is a pip package, not part of Blender: where it is missing the user is
 told to install it or to use Blender's own Smart UV Project.
 """
 from __future__ import annotations
 
+import bmesh
 import bpy
 import numpy as np
 
@@ -13,7 +21,7 @@ from .pbr_source import InputProblem
 UV_NAME = "richmat_uv"
 
 
-def unwrap(obj: bpy.types.Object) -> str:
+def unwrap(obj: bpy.types.Object, triangulate: bool = False) -> str:
     """Add (and make active for rendering) a UV map computed by xatlas; returns the method used."""
     try:
         import xatlas
@@ -21,6 +29,12 @@ def unwrap(obj: bpy.types.Object) -> str:
         raise InputProblem("xatlas is not installed in Blender's Python: run `<blender python> -m pip install "
                            "xatlas`, or unwrap with UV > Smart UV Project") from None
     mesh = obj.data
+    if triangulate:
+        bm = bmesh.new()
+        bm.from_mesh(mesh)
+        bmesh.ops.triangulate(bm, faces=bm.faces[:])
+        bm.to_mesh(mesh)
+        bm.free()
     mesh.calc_loop_triangles()
     n_tris = len(mesh.loop_triangles)
     if n_tris == 0:
