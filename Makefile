@@ -24,15 +24,16 @@ test: $(STAMP)
 demo: $(STAMP)
 	$(PY) -m torch_models demo --out demo_out
 
-# The installable Blender extension: the manifest, the add-on package and the shipped decoder, built by
-# Blender's own extension CLI (shipped inside the bpy wheel) into dist/.
+# The installable Blender extension: the manifest, the add-on modules richmat_addon/__init__.py imports
+# (tools/extension_files.py) and the shipped decoder, built by Blender's own extension CLI (shipped
+# inside the bpy wheel) into dist/.
 BLENDER_EXT := $(shell $(PY) -c "import importlib.util as u, pathlib as p; print(p.Path(u.find_spec('bpy').origin).parent / '5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py')" 2>/dev/null)
 
 .PHONY: extension
 extension: $(STAMP)
 	rm -rf build/extension && mkdir -p build/extension dist
 	cp blender_manifest.toml build/extension/
-	cp -r richmat_addon/. build/extension/
+	$(PY) tools/extension_files.py build/extension
 	mkdir build/extension/decoder  # the shipped decoder: the numpy encoder and the OSL preview read it
 	cp torch_models/neural/weights/weights.safetensors torch_models/neural/weights/state.json build/extension/decoder/
 	$(PY) $(BLENDER_EXT) build --source-dir build/extension --output-dir dist

@@ -1,0 +1,39 @@
+"""What the Blender extension carries: the add-on modules ``richmat_addon/__init__.py`` reaches by imports.
+
+Modules that only the farm and the torch side import (the glTF readers, the
+caption vocabulary, ...) stay in the repository, out of the zip a user
+installs. ``make extension`` runs ``python tools/extension_files.py DEST`` to
+copy the modules under DEST, keeping their paths inside the package.
+"""
+from __future__ import annotations
+
+import modulefinder
+import shutil
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+PACKAGE = "richmat_addon"
+
+
+def addon_modules(root: Path = REPO) -> list[Path]:
+    """The package's module files reached from its ``__init__``, relative to the package folder.
+
+    ``modulefinder`` reads the imports from byte code, those inside functions too,
+    without running anything; it searches ``root`` only, so bpy, numpy and the
+    standard library are left out.
+    """
+    finder = modulefinder.ModuleFinder(path=[str(root)])
+    finder.import_hook(PACKAGE)
+    return sorted(Path(module.__file__).relative_to(root / PACKAGE) for name, module in finder.modules.items()
+                  if name == PACKAGE or name.startswith(PACKAGE + "."))
+
+
+def copy_modules(dest: Path) -> None:
+    for rel in addon_modules():
+        (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(REPO / PACKAGE / rel, dest / rel)
+
+
+if __name__ == "__main__":
+    copy_modules(Path(sys.argv[1]))
