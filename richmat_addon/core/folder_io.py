@@ -2,9 +2,10 @@
 
 Core (no bpy, no torch): the add-on, the torch backend and the farm scripts write
 and read the same folders through ``material_folder`` and ``neural_folder``, which
-build on this. OpenImageIO is imported inside the functions, so inside Blender its
-bundled copy serves (the add-on makes sure that copy comes first). Every write goes
-to a temporary file that replaces the target only when complete.
+build on this (as does ``dataset_index``, the index of a farm output). OpenImageIO is
+imported inside the functions, so inside Blender its bundled copy serves (the add-on
+makes sure that copy comes first). Every write goes to a temporary file that replaces
+the target only when complete.
 """
 from __future__ import annotations
 
@@ -102,15 +103,25 @@ def read_record(path: Path, what: str, version_field: str, version: object,
         record = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise FormatError(f"{path}: not a JSON record ({exc})") from None
+    return check_record(record, str(path), version_field, version, required)
+
+
+def check_record(record: Any, where: str, version_field: str, version: object,
+                 required: Iterable[str] = (), fix: str = "write it again") -> dict[str, Any]:
+    """``record`` if it is an object with this ``version`` and every ``required`` field.
+
+    Shared by the one-record files and the dataset index's lines, so that all of them name
+    the place (``where``) and the field the same way; ``fix`` says how to get a readable one.
+    """
     if not isinstance(record, dict):
-        raise FormatError(f"{path}: not a JSON object")
+        raise FormatError(f"{where}: not a JSON object")
     if version_field not in record:
-        raise FormatError(f"{path}: no {version_field!r} field; written by an older richmat or another "
-                          f"program (this one reads {version_field} {version!r}): write it again")
+        raise FormatError(f"{where}: no {version_field!r} field; written by an older richmat or another "
+                          f"program (this one reads {version_field} {version!r}): {fix}")
     if record[version_field] != version:
-        raise FormatError(f"{path}: {version_field} is {record[version_field]!r}, this richmat reads "
-                          f"{version!r}: write it again")
+        raise FormatError(f"{where}: {version_field} is {record[version_field]!r}, this richmat reads "
+                          f"{version!r}: {fix}")
     missing = [name for name in required if name not in record]
     if missing:
-        raise FormatError(f"{path}: no {', '.join(repr(m) for m in missing)} field")
+        raise FormatError(f"{where}: no {', '.join(repr(m) for m in missing)} field")
     return record
