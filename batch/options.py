@@ -28,9 +28,12 @@ def build_parser() -> argparse.ArgumentParser:
                     "`blender -b -P batch/render_dataset.py -- ARGS`.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     add = parser.add_argument
-    add("--input", type=Path, required=True, help="a folder of assets (searched recursively) or a text file "
-                                                 "listing one asset path per line")
-    add("--output", type=Path, required=True, help="output folder (one subfolder per asset, ledgers in _ledger/)")
+    add("--input", type=Path, help="a folder of assets (searched recursively) or a text file "
+                                   "listing one asset path per line; needed unless --rebuild-index")
+    add("--output", type=Path, help="output folder (one subfolder per asset, ledgers in _ledger/, the dataset "
+                                    "index _index.jsonl); needed unless --rebuild-index")
+    add("--rebuild-index", type=Path, metavar="OUTPUT", help="render nothing: write OUTPUT/_index.jsonl "
+                                                             "anew from the manifests of the assets published there")
     add("--frames", type=int, default=16, help="frames of the orbit")
     add("--resolution", type=int, default=512, help="image width and height in pixels")
     add("--samples", type=int, default=16, help="Cycles samples per pixel of the beauty pass (denoised; "
@@ -85,6 +88,8 @@ def file_sha256(path: Path) -> str:
 
 
 def validate(args: argparse.Namespace) -> None:
+    if args.input is None or args.output is None:
+        raise ValueError("--input and --output are required (unless --rebuild-index)")
     for name in ("frames", "resolution", "samples", "aov_samples", "workers", "fit_steps", "max_texture"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name.replace('_', '-')} must be at least 1")

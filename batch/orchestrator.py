@@ -18,7 +18,9 @@ from typing import Sequence
 
 from tqdm import tqdm
 
-from . import options, publish, runner
+from richmat_addon.core import dataset_index
+
+from . import index, options, publish, runner
 from .assets import Asset, collect
 from .ledger import Ledger
 from .pipeline import Commands, Job, Result, default_commands, process
@@ -103,12 +105,23 @@ def run(args: argparse.Namespace, commands: Commands | None = None) -> int:
         return 130
     pool.shutdown()
     print(summary(results, len(mine) - len(todo)), file=sys.stderr)
+    _write_index(output)
     return 1 if any(r.status == "failed" for r in results) else 0
+
+
+def _write_index(output: Path) -> None:
+    records = index.write(output)
+    print(f"{output / dataset_index.INDEX}: {len(records)} published assets", file=sys.stderr)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = options.build_parser()
     args = parser.parse_args(argv)
+    if args.rebuild_index is not None:
+        if not args.rebuild_index.is_dir():
+            parser.error(f"--rebuild-index {args.rebuild_index}: no such folder")
+        _write_index(args.rebuild_index)
+        return 0
     try:
         options.validate(args)
     except ValueError as exc:
