@@ -79,11 +79,14 @@ def test_interrupted_and_resumed_run_reproduces_the_uninterrupted_run(tiny_confi
         assert im.size[0] > 100
 
 
-def test_batch_dirs_add_every_finished_asset_of_a_batch_output(tmp_path):
-    """A batch output folder in ``batch_dirs`` (relative to the config) adds its complete assets;
-    an interrupted asset's ``.partial`` work folder and the ledger are skipped."""
+def test_batch_dirs_add_every_asset_of_a_batch_output_index(tmp_path):
+    """A batch output folder in ``batch_dirs`` (relative to the config) adds the assets its dataset
+    index lists: the complete ones, never an interrupted asset's ``.partial`` work folder."""
     import shutil
     from pathlib import Path
+
+    from batch import index
+    from richmat_addon.core.folder_io import FormatError
 
     asset = Path(__file__).parent / "data" / "generator_batch" / "cone_metal_2"
     out = tmp_path / "batch_out"
@@ -94,10 +97,9 @@ def test_batch_dirs_add_every_finished_asset_of_a_batch_output(tmp_path):
     cfg_path.write_text(json.dumps({"corpus": {"dir": "corpus", "procedural": 0, "batch_dirs": ["batch_out"]}}))
     cfg = GeneratorTrainConfig.load(cfg_path)
     assert cfg.corpus.batch_dirs == [str(out.resolve())]
-    assert corpus.batch_assets(out) == [out / "cone_metal_2"]
-    assert corpus.batch_assets(out / "cone_metal_2") == [out / "cone_metal_2"]
+    with pytest.raises(FormatError, match="--rebuild-index"):  # an output from before the index
+        load_corpus(cfg.corpus, progress=False)
+    index.write(out)
     with text_encoder():
         samples = load_corpus(cfg.corpus, progress=False)
     assert [s.asset_id for s in samples] == ["cone_metal_2-a98e222826"]
-    with pytest.raises(FileNotFoundError, match="no batch output"):
-        corpus.batch_assets(tmp_path / "missing")

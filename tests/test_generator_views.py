@@ -33,7 +33,7 @@ def _glb_mesh() -> views.Mesh:
 @pytest.fixture(scope="module")
 def both():
     with text_encoder():
-        batch = corpus.from_batch(ASSET)
+        batch = corpus.batch_samples(DATA)[0]
     cams = views.Cameras.from_record(json.loads((ASSET / "cameras.json").read_text()))
     m = ASSET / "materials" / "metal"
     latents = np.concatenate([read_exr(m / "neural" / "latent_0.exr"), read_exr(m / "neural" / "latent_1.exr")], -1)
@@ -78,7 +78,7 @@ def test_rasterised_maps_match_cycles_passes(both):
 
 
 def test_batch_sample_carries_caption_type_and_text():
-    s = corpus.from_batch(ASSET)
+    s = corpus.batch_samples(DATA)[0]
     assert s.caption == (ASSET / "caption.txt").read_text().strip()
     assert "dust" in s.caption and s.type == json.loads((ASSET / "manifest.json").read_text())["enhancement_type"]
     assert s.text.shape == (384,) and abs(float(s.text.norm()) - 1) < 1e-5

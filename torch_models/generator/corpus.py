@@ -11,9 +11,9 @@ embedding; ``type`` the enhancement type (0-5). The caption and asset id ride in
 the file's metadata.
 
 Two sources feed it:
-- ``batch/`` outputs (``from_batch``): the intrinsic EXRs Cycles rendered and the
-  caption batch wrote; the maps are read as they are (render batch at the working
-  resolution).
+- ``batch/`` outputs (``batch_samples``): the intrinsic EXRs Cycles rendered and the
+  caption batch wrote, read through the output's dataset index (``torch_models/dataset.py``);
+  the maps are read as they are (render batch at the working resolution).
 - procedural assets (``from_procedural``): enhanced with ``core.enhance`` and
   encoded to latents with the shipped encoder (optionally refined by a few fit
   steps, ``encoding.py``), rendered with the torch rasteriser of ``views.py``. This is the fast
@@ -26,9 +26,9 @@ whatever order or subset the corpus is built in.
 from __future__ import annotations
 
 import hashlib
-import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -39,6 +39,7 @@ from richmat_addon.core.captions import caption
 from richmat_addon.core.enhance import enhance, is_metallic
 from richmat_addon.core.enhancement_plan import asset_type, material_type
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
+from ..dataset import BatchDataset
 from . import procedural, text
 from .encoding import latent_texture
 from .mesh_input import MeshInput
@@ -129,64 +130,36 @@ def sample_from_views(asset_id: str, caption: str, type_: int, views: IntrinsicV
                   unknown.contiguous(), text.embed([caption])[0])
 
 
-def read_batch_passes(exr: Path) -> dict[str, np.ndarray]:
-    """Layers of one batch ``passes/NNNN.exr`` frame as (H, W, C) arrays, keyed by layer name.
-
-    Blender writes one EXR part (subimage) per layer, named after it."""
-    import OpenImageIO as oiio
-
-    layers = {}
-    probe = oiio.ImageBuf(str(exr))
-    if probe.has_error:
-        raise ValueError(f"{exr}: cannot read ({probe.geterror().strip()})")
-    for sub in range(max(probe.nsubimages, 1)):
-        buf = oiio.ImageBuf(str(exr), sub, 0)
-        name = buf.spec().getattribute("name") or buf.spec().channelnames[0].split(".")[0]
-        layers[str(name)] = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)
-    return layers
+def batch_samples(output: Path) -> list[Sample]:
+    """A sample per asset of a ``batch/`` output, as its dataset index lists them (only published
+    assets: batch renames ``<id>.partial`` to ``<id>`` when an asset is complete)."""
+    assets = BatchDataset(output, load=("intrinsics",))
+    return [from_batch(assets[i]) for i in range(len(assets))]
 
 
-def batch_assets(folder: Path) -> list[Path]:
-    """The finished asset folders of a ``batch/`` output, or ``folder`` itself when it is one.
-
-    Only folders with a manifest count: batch renames ``<id>.partial`` to ``<id>`` when an
-    asset is complete, so an interrupted run's work folders are never read."""
-    if (folder / "manifest.json").is_file():
-        return [folder]
-    if not folder.is_dir():
-        raise FileNotFoundError(f"{folder}: no batch output (make it with batch/render_dataset.py, docs/generator.md)")
-    return sorted(p for p in folder.iterdir()
-                  if p.is_dir() and not p.name.endswith(".partial") and (p / "manifest.json").is_file())
-
-
-def from_batch(folder: Path) -> Sample:
-    """A sample from one finished batch asset folder (passes/, caption.txt, manifest.json).
+def from_batch(item: dict[str, Any]) -> Sample:
+    """A sample from one batch asset: a ``BatchDataset`` item with its intrinsic passes.
 
     batch renders no roughness or metalness pass, so these samples say the two are unknown,
     and their prior is the unknown-PBR uplift, made per pixel of the views (batch keeps no
     texture-space maps) from their base colour, normals and positions."""
-    manifest = json.loads((folder / "manifest.json").read_text())
-    frames = []
-    for exr in sorted((folder / "passes").glob("*.exr")):
-        layers = read_batch_passes(exr)
-        cover = layers["coverage"][..., :1]
-        # Cycles averages its AA samples with the black background: undo that premultiplication
-        unmix = np.where(cover > 0.5, 1.0 / np.maximum(cover, 1e-6), 0.0)
-        normal = layers["Normal"][..., :3] * unmix
-        normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
-        frames.append([normal, layers["Position"][..., :3] * unmix, layers["basecolor"][..., :3] * unmix,
-                       cover[..., 0], np.concatenate([layers["latent_a"][..., :3], layers["latent_b"][..., :3]], -1)
-                       * unmix])
-    normal, position, base, cover, latents = (np.stack(m) for m in zip(*frames))
-    type_ = int(manifest["enhancement_type"])
+    record, layers = item["record"], item["intrinsics"]
+    cover = layers["coverage"][..., :1]
+    # Cycles averages its AA samples with the black background: undo that premultiplication
+    unmix = np.where(cover > 0.5, 1.0 / np.maximum(cover, 1e-6), 0.0)
+    normal = layers["Normal"][..., :3] * unmix
+    normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
+    position, base = layers["Position"][..., :3] * unmix, layers["basecolor"][..., :3] * unmix
+    latents = np.concatenate([layers["latent_a"][..., :3], layers["latent_b"][..., :3]], -1) * unmix
+    cover = cover[..., 0]
+    type_ = int(record["enhancement_type"])
     v, h, w = cover.shape
     flat = lambda m: m.reshape(v * h, w, -1)  # the views stacked as one image: the prior is per pixel here
     prior = prior_latents(flat(base), None, type_, flat(normal), flat(position)).reshape(v, h, w, 6)
     views = IntrinsicViews(*(torch.from_numpy(m).float() for m in (normal, position, base, cover)),
                            torch.zeros((v, h, w, 2)),
                            torch.from_numpy(np.concatenate([latents, prior, prior], -1)).float())
-    cap = (folder / "caption.txt").read_text().strip()
-    return sample_from_views(manifest["asset_id"], cap, type_, views)
+    return sample_from_views(record["asset_id"], record["caption"], type_, views)
 
 
 def build_procedural(out: Path, count: int, views: int, resolution: int, seed: int = 0,

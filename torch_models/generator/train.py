@@ -27,7 +27,7 @@ from .dit import Conditions, DitConfig, LatentGenerator
 class CorpusConfig:
     dir: str = "generator_corpus"  # relative paths (here and in batch_dirs) are relative to the config file
     procedural: int = 400  # procedural objects made (and kept) in dir
-    batch_dirs: list[str] = field(default_factory=list)  # batch/ outputs (or single asset folders) to add
+    batch_dirs: list[str] = field(default_factory=list)  # batch/ outputs to add (the assets their index lists)
     views: int = 8
     resolution: int = 32
     texture_size: int = 64
@@ -86,7 +86,7 @@ def load_corpus(cfg: CorpusConfig, progress: bool = True) -> list[corpus.Sample]
     paths = corpus.build_procedural(Path(cfg.dir), cfg.procedural, cfg.views, cfg.resolution, cfg.seed,
                                     cfg.texture_size, cfg.fit_steps, cfg.supersample, progress)
     samples = [corpus.Sample.load(p) for p in paths]
-    samples += [corpus.from_batch(a) for d in cfg.batch_dirs for a in corpus.batch_assets(Path(d))]
+    samples += [s for d in cfg.batch_dirs for s in corpus.batch_samples(Path(d))]
     return samples
 
 
