@@ -22,7 +22,8 @@ from PIL import Image
 
 from batch import ledger
 from batch.options import DEFAULT_DECODER
-from richmat_addon.core import neural_folder
+from richmat_addon.core import dataset_index, neural_folder
+from torch_models.dataset import BatchDataset
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -133,6 +134,8 @@ def test_tiny_batch_renders_good_assets_and_reports_bad_ones(tmp_path: Path) -> 
             seen = np.concatenate([np.median(layers[n][covered][:, :3], axis=0) for n in ("latent_a", "latent_b")])
             assert np.allclose(seen, neural["latent"], atol=2e-3)
     assert not list(out.glob("*.partial"))
+    assets = BatchDataset(out, load=dataset_index.KINDS)  # the run's index names every file it loads
+    assert sorted(a["record"]["source"] for a in assets) == sorted(done)
 
 
 def check_intrinsics(path: Path) -> None:
