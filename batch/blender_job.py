@@ -28,6 +28,7 @@ if str(REPO) not in sys.path:
 import bpy  # noqa: E402
 
 from batch.bl_scene import BadAsset  # noqa: E402
+from batch.options import DEFAULT_MAX_TRIANGLES  # noqa: E402
 
 BAD_INPUT_EXIT = 3  # batch.pipeline.BAD_INPUT_EXIT (not imported: the orchestrator side stays bpy-free)
 UNTEXTURED_DUST_SIZE = 256  # texture size for dust masks of a material without textures
@@ -43,10 +44,10 @@ def prepare(args: argparse.Namespace) -> None:
     from batch import bl_materials, bl_scene
 
     bl_scene.empty_scene()
-    loaded = bl_scene.import_asset(args.asset)
-    removed = bl_scene.remove_drivers_and_extras()
-    geometry = bl_scene.check_geometry()
-    notes = bl_materials.unwrap_missing_uvs()
+    loaded, import_notes = bl_scene.import_asset(args.asset, args.max_triangles)
+    removed, removal_notes = bl_scene.remove_drivers_and_extras()
+    geometry = bl_scene.check_geometry(args.max_triangles)
+    notes = import_notes + removal_notes + bl_materials.unwrap_missing_uvs()
     bl_materials.ensure_materials()
     norm = bl_scene.normalise()
     materials, taken = [], set()
@@ -133,6 +134,7 @@ def parse(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--asset", type=Path, required=True)
     p.add_argument("--type", type=int, required=True)
     p.add_argument("--max-texture", type=int, required=True)
+    p.add_argument("--max-triangles", type=int, default=DEFAULT_MAX_TRIANGLES)
     r = sub.add_parser("render")
     r.add_argument("--frames", type=int, required=True)
     r.add_argument("--resolution", type=int, required=True)

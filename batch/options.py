@@ -16,6 +16,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
 DEFAULT_DECODER = REPO / "torch_models" / "neural" / "weights"
+# 5 M triangles import in about 25 s with 1.2 GB of memory (docs/batch.md); far beyond any one material's needs.
+DEFAULT_MAX_TRIANGLES = 5_000_000
 # Bumped when the per-asset output format or pipeline changes meaning.
 PIPELINE_VERSION = 1
 
@@ -46,6 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
                                                              "(weights.safetensors + state.json)")
     add("--fit-steps", type=int, default=300, help="latent optimisation steps per material")
     add("--max-texture", type=int, default=512, help="larger textures are downscaled to this size (noted)")
+    add("--max-triangles", type=int, default=DEFAULT_MAX_TRIANGLES,
+        help="assets whose meshes have more triangles are refused with the count (a glTF before it is imported)")
     add("--shard", default=None, help="I/N: render only the assets of shard I of N (stable hash split); "
                                       "default: SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT when set, else 0/1")
     add("--workers", type=int, default=1, help="assets rendered at once (CPU threads are split between them)")
@@ -90,7 +94,8 @@ def file_sha256(path: Path) -> str:
 def validate(args: argparse.Namespace) -> None:
     if args.input is None or args.output is None:
         raise ValueError("--input and --output are required (unless --rebuild-index)")
-    for name in ("frames", "resolution", "samples", "aov_samples", "workers", "fit_steps", "max_texture"):
+    for name in ("frames", "resolution", "samples", "aov_samples", "workers", "fit_steps", "max_texture",
+                 "max_triangles"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name.replace('_', '-')} must be at least 1")
     if args.timeout <= 0 or args.retries < 0:

@@ -72,7 +72,7 @@ def run(args: argparse.Namespace, commands: Commands | None = None) -> int:
     output: Path = args.output
     output.mkdir(parents=True, exist_ok=True)
     job = Job(settings, settings_hash, output.resolve(), args.probe.resolve(), args.decoder.resolve(),
-              args.timeout, args.retries, args.workers,
+              args.timeout, args.retries, args.workers, args.max_triangles,
               commands or default_commands(args.blender, args.python))
     mine = [a for a in collect(args.input, exclude=job.output) if shard.owns(a.id)]
     todo = [a for a in mine if not publish.is_done(job.output, a.id, settings_hash)]

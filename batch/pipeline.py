@@ -77,6 +77,7 @@ class Job:
     timeout: float
     retries: int
     workers: int
+    max_triangles: int  # not in the settings: it decides which assets are refused, not what one's output is
     commands: Commands
 
 
@@ -101,7 +102,7 @@ def _stage_commands(asset: Asset, job: Job, work: Path) -> list[tuple[str, list[
     s, threads = job.settings, cpu_threads(job.workers)
     prepare = ["prepare", "--asset", str(asset.path), "--work", str(work), "--asset-id", asset.id,
                "--type", str(asset_type(asset.id, s.seed)), "--seed", str(s.seed),
-               "--max-texture", str(s.max_texture)]
+               "--max-texture", str(s.max_texture), "--max-triangles", str(job.max_triangles)]
     fit = ["--work", str(work), "--decoder", str(job.decoder), "--steps", str(s.fit_steps),
            "--threads", str(threads)]
     render = ["render", "--work", str(work), "--asset-id", asset.id, "--frames", str(s.frames),

@@ -17,7 +17,7 @@ import pytest
 from PIL import Image
 
 from richmat_addon.core.colour import srgb_to_linear
-from richmat_addon.core.gltf_materials import GltfError, load_gltf, read_materials
+from richmat_addon.core.gltf_materials import GltfError, glb_bytes, load_gltf, read_materials
 from richmat_addon.core.gltf_mesh import read_geometry
 from richmat_addon.core import uv_raster
 from richmat_addon.core.uv_raster import rasterize
@@ -99,23 +99,15 @@ class _Builder:
         return len(self.views) - 1
 
     def accessor(self, array: np.ndarray) -> int:
-        ctype = {np.float32: 5126, np.uint16: 5123, np.uint32: 5125}[array.dtype.type]
-        kind = {1: "SCALAR", 2: "VEC2", 3: "VEC3"}[array.shape[1] if array.ndim == 2 else 1]
+        ctype = {np.float32: 5126, np.uint8: 5121, np.uint16: 5123, np.uint32: 5125}[array.dtype.type]
+        kind = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4", 16: "MAT4"}[array.shape[1] if array.ndim == 2 else 1]
         acc = {"bufferView": self.view(array.tobytes()), "componentType": ctype,
                "count": len(array), "type": kind}
         if array.dtype == np.float32:
-            acc["min"], acc["max"] = array.min(axis=0).tolist(), array.max(axis=0).tolist()
+            acc["min"], acc["max"] = (np.atleast_1d(array.min(axis=0)).tolist(),
+                                      np.atleast_1d(array.max(axis=0)).tolist())
         self.accessors.append(acc)
         return len(self.accessors) - 1
-
-
-def glb_bytes(doc: dict[str, Any], binary: bytes) -> bytes:
-    js = json.dumps(doc).encode()
-    js += b" " * (-len(js) % 4)
-    binary += b"\0" * (-len(binary) % 4)
-    total = 12 + 8 + len(js) + 8 + len(binary)
-    return (struct.pack("<4sII", b"glTF", 2, total) + struct.pack("<II", len(js), 0x4E4F534A) + js
-            + struct.pack("<II", len(binary), 0x004E4942) + binary)
 
 
 def write_test_glb(path: Path, material_names: tuple[str, ...] = ("Painted", "Plain", "Tiled")) -> Path:

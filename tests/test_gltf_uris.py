@@ -16,8 +16,9 @@ from typing import Any, Callable
 import numpy as np
 import pytest
 
+from batch.gltf_import import checked_files, prepare
 from richmat_addon.core import gltf_materials
-from richmat_addon.core.gltf_materials import GltfError, external_files, load_gltf, read_materials
+from richmat_addon.core.gltf_materials import GltfError, load_gltf, parse_file, read_materials
 from tests.test_gltf_io import base_color_image, pil_decode, png
 
 Craft = Callable[[Path], str]  # makes what the URI points at inside tmp_path; returns the URI
@@ -101,7 +102,8 @@ def test_crafted_image_uri_is_refused_and_nothing_read(asset_dir: Path, craft: C
     assert repr(uri) in str(err.value) and str(gltf) in str(err.value)
     assert opened == []
     with pytest.raises(GltfError, match="which is refused"):
-        external_files(gltf)  # what batch checks before Blender's importer
+        prepare(gltf, asset_dir)  # what batch checks before Blender's importer
+    assert opened == []
 
 
 @pytest.mark.parametrize("craft", CRAFTED.values(), ids=CRAFTED.keys())
@@ -132,12 +134,13 @@ def test_files_inside_the_folder_and_data_uris_are_read(asset_dir: Path) -> None
     (mat,) = read_materials(gltf, pil_decode)
     assert mat.pbr.base_color.shape == (8, 8)
     assert load_gltf(gltf).buffers == [b"\x01\x02\x03\x04"]
-    assert external_files(gltf) == [asset_dir / "asset" / "buf.bin",
-                                    asset_dir / "asset" / "textures" / "base colour.png"]
+    assert checked_files(gltf, parse_file(gltf)[0]) == ({("buffers", 0): asset_dir / "asset" / "buf.bin",
+                                                         ("images", 0): asset_dir / "asset" / "textures" /
+                                                         "base colour.png"}, {})
     inline = _asset(asset_dir, image_uri="data:image/png;base64," + base64.b64encode(image).decode())
     (mat,) = read_materials(inline, pil_decode)
     np.testing.assert_allclose(mat.pbr.base_color.value, read_materials(gltf, pil_decode)[0].pbr.base_color.value)
-    assert external_files(inline) == []
+    assert checked_files(inline, parse_file(inline)[0]) == ({}, {})
 
 
 @pytest.mark.parametrize("name", ["../ escape", "/dev/zero", "fifo"])
@@ -161,7 +164,7 @@ from pathlib import Path
 from batch import bl_scene
 bl_scene.empty_scene()
 try:
-    bl_scene.import_asset(Path({str(gltf)!r}))
+    bl_scene.import_asset(Path({str(gltf)!r}), max_triangles=1000)
     print("RESULT " + json.dumps("imported"))
 except bl_scene.BadAsset as exc:
     print("RESULT " + json.dumps(str(exc)))

@@ -62,6 +62,10 @@ class GltfError(ValueError):
         self.problem = problem
 
 
+class MissingFile(GltfError):
+    """An external file the glTF names (inside its folder) does not exist."""
+
+
 @contextmanager
 def checked(path: Path) -> Iterator[None]:
     """Turn what malformed JSON makes the readers trip over into a ``GltfError``.
@@ -115,28 +119,15 @@ class GltfDocument:
 def load_gltf(path: str | Path) -> GltfDocument:
     """Parse a .glb or .gltf file and load its buffers (GLB chunk, data: URIs, files)."""
     path = Path(path)
-    doc_json, bin_chunk = _parse_file(path)
+    doc_json, bin_chunk = parse_file(path)
     with checked(path):
         _check_asset(path, doc_json)
         buffers = [_load_buffer(path, i, b, bin_chunk) for i, b in enumerate(doc_json.get("buffers", []))]
     return GltfDocument(path, doc_json, buffers)
 
 
-def external_files(path: str | Path) -> list[Path]:
-    """Every external file a .gltf/.glb refers to by URI, each checked by ``resolve_uri``.
-
-    For importers that resolve URIs themselves (Blender's): calling this first holds
-    them to the same rules as this reader."""
-    path = Path(path)
-    doc_json, _ = _parse_file(path)
-    with checked(path):
-        return [resolve_uri(path, item["uri"], f"{kind}[{i}]")
-                for kind in ("buffers", "images") for i, item in enumerate(doc_json.get(kind, []))
-                if "uri" in item and not item["uri"].startswith("data:")]
-
-
-def _parse_file(path: Path) -> tuple[dict[str, Any], bytes | None]:
-    """The JSON of a .gltf or .glb, and the GLB binary chunk if there is one."""
+def parse_file(path: Path) -> tuple[dict[str, Any], bytes | None]:
+    """The JSON of a .gltf or .glb, and the GLB binary chunk if there is one (no URI is read)."""
     try:
         raw = path.read_bytes()
     except OSError as exc:
@@ -182,6 +173,17 @@ def _parse_glb(path: Path, raw: bytes) -> tuple[dict[str, Any], bytes | None]:
     return _parse_json(path, chunks[0][1].rstrip(b" \x00")), bin_chunk
 
 
+def glb_bytes(doc: dict[str, Any], binary: bytes | None) -> bytes:
+    """A GLB container of the JSON and the binary chunk (both padded to 4 bytes)."""
+    js = json.dumps(doc).encode()
+    js += b" " * (-len(js) % 4)
+    chunks = struct.pack("<II", len(js), _CHUNK_JSON) + js
+    if binary is not None:
+        binary += b"\0" * (-len(binary) % 4)
+        chunks += struct.pack("<II", len(binary), _CHUNK_BIN) + binary
+    return struct.pack("<4sII", _GLB_MAGIC, 2, 12 + len(chunks)) + chunks
+
+
 def _check_asset(path: Path, doc: dict[str, Any]) -> None:
     version = str(doc.get("asset", {}).get("version", ""))
     if not version.startswith("2."):
@@ -211,8 +213,8 @@ def resolve_uri(path: Path, uri: str, what: str) -> Path:
     try:
         info = target.stat()
     except OSError:
-        raise GltfError(path, f"{what} refers to external file {uri!r}, which is missing "
-                              f"(looked for {target})") from None
+        raise MissingFile(path, f"{what} refers to external file {uri!r}, which is missing "
+                                f"(looked for {target})") from None
     if not stat.S_ISREG(info.st_mode):
         raise _refused(path, uri, what, f"{target} is not a regular file")
     if info.st_size > MAX_URI_BYTES:
