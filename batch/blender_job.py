@@ -31,7 +31,6 @@ from batch.bl_scene import BadAsset  # noqa: E402
 from batch.options import DEFAULT_MAX_TRIANGLES  # noqa: E402
 
 BAD_INPUT_EXIT = 3  # batch.pipeline.BAD_INPUT_EXIT (not imported: the orchestrator side stays bpy-free)
-UNTEXTURED_DUST_SIZE = 256  # texture size for dust masks of a material without textures
 
 
 def prepare(args: argparse.Namespace) -> None:
@@ -50,16 +49,18 @@ def prepare(args: argparse.Namespace) -> None:
     notes = import_notes + removal_notes + bl_materials.unwrap_missing_uvs()
     bl_materials.ensure_materials()
     norm = bl_scene.normalise()
+    sources = [bl_materials.read_pbr(mat, args.max_texture) for mat in bl_materials.used_materials()]
+    notes += bl_materials.render_uv_maps(sources)
     materials, taken = [], set()
-    for mat in bl_materials.used_materials():
-        source = bl_materials.read_pbr(mat, args.max_texture)
+    for source in sources:
+        mat = source.material
+        bl_materials.bake_vertex_colours(source, args.max_texture)
         metallic = is_metallic(source.pbr)
         type_, type_note = material_type(args.type, metallic)
         normals = positions = None
         world_note = None
         if type_ in DUST_TYPES:
-            sizes = [m.shape for m in (source.pbr.base_color, source.pbr.roughness, source.pbr.metalness) if m.shape]
-            size = max(sizes, key=lambda s: s[0] * s[1]) if sizes else (min(UNTEXTURED_DUST_SIZE, args.max_texture),) * 2
+            size = bl_materials.map_size(source.pbr, args.max_texture)
             normals, positions, world_note = mesh_maps.world_maps(bl_materials.material_surfaces(mat), size)
         enhanced = enhance(source.pbr, type_, args.seed, world_normals=normals, world_positions=positions)
         folder = args.work / "materials" / material_folder.safe_name(mat.name, taken)
