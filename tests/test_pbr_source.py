@@ -98,8 +98,13 @@ import json
 import bpy
 import numpy as np
 from batch import bl_materials
+from richmat_addon.blender.unwrap import unwrap
 
 bpy.ops.wm.read_homefile(use_empty=True)
+bpy.ops.mesh.primitive_monkey_add()
+kept = unwrap(bpy.context.active_object)  # the add-on's way: the user's quads kept, the stretched ones counted
+addon = {"faces": kept.faces, "stretched": kept.stretched, "message": kept.message("Suzanne")}
+bpy.ops.object.delete()
 bpy.ops.mesh.primitive_monkey_add()
 mesh = bpy.context.active_object.data
 while mesh.uv_layers:
@@ -112,7 +117,7 @@ area = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]) / 
 print("RESULT " + json.dumps({"notes": notes, "sides": sorted({len(f.vertices) for f in mesh.polygons}),
                               "layer": mesh.uv_layers.active.name, "render": mesh.uv_layers.active.active_render,
                               "uv_range": [float(uv.min()), float(uv.max())],
-                              "degenerate": int((np.abs(area) < 1e-9).sum())}))
+                              "degenerate": int((np.abs(area) < 1e-9).sum()), "addon": addon}))
 '''
 
 
@@ -167,3 +172,8 @@ def test_the_farm_unwraps_with_the_addon_unwrapper_triangulated(blender_run):
     assert unwrap["sides"] == [3]  # every face one chart triangle: no face stretched across two charts
     assert unwrap["layer"] == "richmat_uv" and unwrap["render"]
     assert 0.0 <= unwrap["uv_range"][0] and unwrap["uv_range"][1] <= 1.0 and unwrap["degenerate"] == 0
+    # Suzanne's quads unwrapped as they are: some span two charts, and the user is told how many and what to do.
+    addon = unwrap["addon"]
+    assert addon["faces"] == 500 and 0 < addon["stretched"] < addon["faces"]
+    assert f"{addon['stretched']} of 500 faces span two UV charts" in addon["message"]
+    assert "Triangulate" in addon["message"]

@@ -14,9 +14,11 @@ from ..core.enhancement_types import DIELECTRIC_ONLY
 from ..core import material_folder, neural_encoder
 from ..core.folder_io import FormatError
 from ..core.prompt import prompt_type
-from . import bake, mesh_maps, neural_assets, neural_backend, uplift
-from .cycles_builder import enable_osl
+from . import bake, cycles_builder, mesh_maps, neural_assets, neural_backend, uplift
 from .pbr_source import InputProblem
+
+OSL_HINT = ("turn on Open Shading Language in Render Properties with the CPU device (or an OptiX GPU), "
+            "then Toggle Cycles Graph for the exact shader")
 
 
 def _settings(context: bpy.types.Context):
@@ -61,14 +63,54 @@ class RICHMAT_OT_uplift_material(bpy.types.Operator):
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         s = _settings(context)
+        cycles = uplift.cycles_choice(context.scene)
         try:
-            lines = uplift.uplift(context.active_object, s.all_slots, s.enhancement_type, s.seed)
+            lines = uplift.uplift(context.active_object, s.all_slots, s.enhancement_type, s.seed, cycles)
         except InputProblem as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        enable_osl(context.scene)
-        self.report({"INFO"}, "Uplifted " + "; ".join(lines) + ". Render engine set to Cycles on the CPU "
-                    "with Open Shading Language (the enhanced shader is OSL)")
+        self.report({"INFO"}, "Uplifted " + "; ".join(lines) + ". " + _engines_note(cycles))
+        return {"FINISHED"}
+
+
+def _engines_note(cycles: cycles_builder.Graph) -> str:
+    if cycles == "osl":
+        return "Cycles renders the exact OSL shader, EEVEE and Cycles without OSL the native nodes"
+    return f"Cycles and EEVEE render the native nodes (Cycles here cannot run OSL: {OSL_HINT})"
+
+
+class RICHMAT_OT_toggle_cycles_graph(bpy.types.Operator):
+    """Switch what Cycles renders for the enhanced materials: the exact OSL shader (CPU, OptiX) or the
+    native node graph (every device); EEVEE always renders the native graph"""
+
+    bl_idname = "richmat.toggle_cycles_graph"
+    bl_label = "Toggle Cycles Graph (OSL / Native)"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        if not _needs_enhanced(cls, context):
+            return False
+        if cycles_builder.cycles_graph(_enhanced(context)) is None:
+            cls.poll_message_set("This material has one graph only: Uplift it again")
+            return False
+        return True
+
+    def execute(self, context: bpy.types.Context) -> set[str]:
+        target: cycles_builder.Graph = "native" if cycles_builder.cycles_graph(_enhanced(context)) == "osl" else "osl"
+        if target == "osl" and uplift.cycles_choice(context.scene) != "osl":
+            self.report({"ERROR"}, f"Cycles cannot run OSL with these settings: {OSL_HINT.split(', then')[0]}")
+            return {"CANCELLED"}
+        obj = context.active_object
+        switched = []
+        for index in uplift.slot_indices(obj, _settings(context).all_slots):
+            material = obj.material_slots[index].material
+            enhanced = material if uplift.is_enhanced(material) else material.richmat.enhanced
+            if enhanced is not None and cycles_builder.cycles_graph(enhanced) is not None:
+                cycles_builder.use_in_cycles(enhanced, target)
+                switched.append(enhanced.name)
+        self.report({"INFO"}, f"Cycles now renders the {'exact OSL shader' if target == 'osl' else 'native nodes'} "
+                    "of " + ", ".join(switched))
         return {"FINISHED"}
 
 
@@ -331,13 +373,13 @@ class RICHMAT_OT_generate_material(_BackendOperator, bpy.types.Operator):
         s, obj = _settings(context), context.active_object
         backend = neural_assets.backend(context)  # before any change: a missing backend changes nothing
         type_, _ = prompt_type(s.prompt)
+        cycles = uplift.cycles_choice(context.scene)
         try:
-            uplift.uplift(obj, False, str(type_), s.seed)
+            uplift.uplift(obj, False, str(type_), s.seed, cycles)
         except InputProblem:
             if type_ not in DIELECTRIC_ONLY:
                 raise
-            uplift.uplift(obj, False, str(prompt_type(s.prompt, metallic=True)[0]), s.seed)  # a metal
-        enable_osl(context.scene)
+            uplift.uplift(obj, False, str(prompt_type(s.prompt, metallic=True)[0]), s.seed, cycles)  # a metal
         bake.bake(obj, False, bake.output_root(context.scene))
         baked = Path(_enhanced(context).richmat.bake_dir)
         mesh = baked / "generate_mesh.obj"
@@ -375,10 +417,11 @@ class RICHMAT_OT_unwrap_uvs(bpy.types.Operator):
     def execute(self, context: bpy.types.Context) -> set[str]:
         from .unwrap import unwrap
 
-        method = unwrap(context.active_object)
-        self.report({"INFO"}, f"UV map added to {context.active_object.name} ({method})")
+        result = unwrap(context.active_object)
+        self.report({"WARNING"} if result.stretched else {"INFO"}, result.message(context.active_object.name))
         return {"FINISHED"}
 
 
-CLASSES = (RICHMAT_OT_uplift_material, RICHMAT_OT_switch_material, RICHMAT_OT_bake_parameters,
+CLASSES = (RICHMAT_OT_uplift_material, RICHMAT_OT_switch_material, RICHMAT_OT_toggle_cycles_graph,
+           RICHMAT_OT_bake_parameters,
            RICHMAT_OT_fit_neural, RICHMAT_OT_generate_material, RICHMAT_OT_export_materialx, RICHMAT_OT_unwrap_uvs)
