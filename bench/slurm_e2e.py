@@ -8,13 +8,13 @@ the current user with their key, socket, state, spool and logs in a work folder.
 It submits the sbatch file as committed, as an array over the sample models plus
 broken files, with small render settings as trailing arguments (and 1 CPU / 2 GB
 per task on the sbatch command line, which leaves the file as it is). When the task
-owning the most good assets has published one and is inside another (a
-``.partial`` folder), it is cancelled (``scancel``) and requeued (``scontrol
-requeue``). When the array is done it checks that every good asset is published
-exactly once, every bad one is in the ledgers with its reason, no ``.partial`` is
-left, and that the shards' ledgers merge to what one process without shards
-(same inputs, same settings) records. It stops the daemons it started, also on
-failure.
+owning the most good assets has published one and is inside another (its
+``.partial`` folder holds the prepared scene: the fit or render is running), it is
+cancelled (``scancel``) and requeued (``scontrol requeue``). When the array is done
+it checks that every good asset is published exactly once, every bad one is in the
+ledgers with its reason, no ``.partial`` is left, and that the shards' ledgers merge
+to what one process without shards (same inputs, same settings) records. It stops
+the daemons it started, also on failure.
 
     python -m bench.slurm_e2e [--work DIR] [--tasks 3] [--out docs/reports/slurm_e2e.json]
 
@@ -44,6 +44,7 @@ import numpy as np
 from batch import ledger
 from batch.assets import collect
 from batch.options import DEFAULT_DECODER
+from batch.pipeline import SCENE_FILE
 from batch.sharding import shard_of
 from bench.common import REPO, add_out_argument, child_env, file_sha256, write_report
 from tests.conftest import SHARED_ASSETS
@@ -308,7 +309,7 @@ class Array:
         self.cluster, self.job_id, self.tasks = cluster, job_id, tasks
         self.t0 = time.monotonic()
         self.timeline: list[dict[str, Any]] = []
-        self.last: dict[int, str] = {}
+        self.last: dict[int, tuple[str, str]] = {}  # task -> (state, reason)
 
     def event(self, event: str, **detail: Any) -> None:
         now = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
@@ -325,14 +326,14 @@ class Array:
         return out
 
     def poll(self) -> dict[int, dict[str, str]]:
-        """The states now; each change of a task's state goes into the timeline."""
+        """The states now; each change of a task's state or pending reason goes into the timeline."""
         states = self.states()
         for task, record in sorted(states.items()):
-            state = record["JobState"]
-            if self.last.get(task) != state:
-                self.event(f"task {task} {state}", job_id=record["JobId"], reason=record.get("Reason"),
+            now = (record["JobState"], record.get("Reason", "None"))
+            if self.last.get(task) != now:
+                self.event(f"task {task} {now[0]}", job_id=record["JobId"], reason=now[1],
                            restarts=int(record.get("Restarts", 0)))
-                self.last[task] = state
+                self.last[task] = now
         return states
 
     def wait(self, done: Callable[[dict[int, dict[str, str]]], bool], seconds: float, what: str) -> dict:
@@ -365,17 +366,18 @@ def plan(inputs: Path, tasks: int) -> dict[str, Any]:
 
 
 def cancel_mid_asset(array: Array, task: int, output: Path, good: list[str], seconds: float) -> dict[str, Any]:
-    """Wait until ``task`` has published one of its ``good`` assets and works on another, then
-    ``scancel`` it, wait for CANCELLED and ``scontrol requeue`` it."""
+    """Wait until ``task`` has published one of its ``good`` assets and is past the prepare stage of
+    another (its ``.partial`` holds the saved scene), then ``scancel`` it, wait for CANCELLED and
+    ``scontrol requeue`` it."""
     deadline = time.monotonic() + seconds
     while True:
         states = array.poll()
         done = [i for i in good if (output / i / "manifest.json").is_file()]
-        partial = [i for i in good if (output / f"{i}.partial").is_dir()]
+        partial = [i for i in good if (output / f"{i}.partial" / SCENE_FILE).is_file()]
         if states.get(task, {}).get("JobState") == "RUNNING" and done and partial:
             break
         if states.get(task, {}).get("JobState") in ENDED or time.monotonic() > deadline:
-            raise RuntimeError(f"task {task} never was inside its second good asset (published {done})")
+            raise RuntimeError(f"task {task} ended before it was inside a second good asset (published {done})")
         time.sleep(0.5)
     target = f"{array.job_id}_{task}"
     files = sorted(p.relative_to(output / f"{partial[0]}.partial").as_posix()
