@@ -1,10 +1,20 @@
-"""Build a Cycles material (OSL Script node) for an ``EnhancedMaterial``.
+"""Build the Blender material of an ``EnhancedMaterial``: the exact OSL graph and the native one.
 
-The shader text comes from ``core.osl`` for the graph pruned by the material's
-constants, so an untextured Type 0 material compiles to a few lines. Every
-shader input becomes a Script-node socket: textured parameters are wired to
-Image Texture nodes (grouped in one frame per lobe), constants are written as
-socket default values.
+Both come from the graph pruned by the material's constants, so an untextured
+Type 0 material compiles to a few lines of OSL and a few nodes. Every parameter
+the graph reads is one node, shared by both graphs: an Image Texture
+(``tex_<parameter>``) when it is a texture, a Value or RGB node
+(``const_<parameter>``, which the panel edits) when it is a constant. Each
+node sits in one frame per lobe group.
+
+Outputs (a Material Output's target decides which engine reads it):
+
+- ``richmat_output``, target Cycles: the OSL Script node (exact; CPU and OptiX only)
+  or the native group (any device), whichever ``use_in_cycles`` chose;
+- ``richmat_output_eevee``, target EEVEE: the native group;
+- ``richmat_output_export``, target All and the active output: a Principled BSDF
+  with the values an exporter can write (glTF, USD). Neither engine renders it, because
+  each has an output of its own target.
 
 Colour spaces: our maps are written as linear values. Colour-valued maps
 (base colour, conductor reflectivity, scatter colour) are tagged
@@ -14,35 +24,63 @@ not Rec.709, as for any other colour. Data maps (weights, alphas, IORs) are
 """
 from __future__ import annotations
 
+import math
 import os
 import sys
 import tempfile
+from collections.abc import Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator, Union
+from typing import Iterator, Literal, Union
 
 import bpy
 
 from ..core import graph, osl, schema
 from ..core.maps import EnhancedMaterial, ParamMap
+from . import native_builder
 from .osl_env import prefer_blender_bundled_modules
 
+Graph = Literal["osl", "native"]
+GRAPHS: tuple[Graph, ...] = ("osl", "native")
 SCRIPT_NODE = "richmat_osl"
+NATIVE_NODE = native_builder.NODE
 OUTPUT_NODE = "richmat_output"
+EEVEE_OUTPUT_NODE = "richmat_output_eevee"
+EXPORT_OUTPUT_NODE = "richmat_output_export"
+EXPORT_NODE = "richmat_export"
+OSL_SETTINGS = "turn on Open Shading Language in Render Properties with the CPU device (or an OptiX GPU)"
 COLOR_SPACE_COLOR = "Linear Rec.709"
 COLOR_SPACE_DATA = "Non-Color"
 
 # Frame of the base colour texture; parameters go to the frame of their schema lobe group.
 _BASE_GROUP = "base"
-# Column and row pitch of the texture nodes (left of the Script node).
-_TEXTURE_SPACING = (300.0, 280.0)
-
+# Column and row pitch of the parameter nodes (left of the shaders).
+_PARAMETER_SPACING = (300.0, 280.0)
+# The export Principled BSDF: socket, the parameters that feed it (the first one the graph reads, else
+# the first one's value), and whether it takes sqrt(alpha) (Blender squares the roughness). glTF's sheen
+# has no weight, so the dust weight is the sheen colour (KHR_materials_sheen's sheenColorFactor).
+_EXPORT_SOCKETS: tuple[tuple[str, tuple[str, ...], bool], ...] = (
+    ("Base Color", ("base_color", "spec_color"), False), ("Metallic", ("metalness",), False),
+    ("Roughness", ("alpha_core",), True), ("IOR", ("diel_ior",), False),
+    ("Coat Weight", ("coat_weight",), False), ("Coat Roughness", ("coat_alpha",), True),
+    ("Coat IOR", ("coat_ior",), False), ("Sheen Tint", ("dust_weight",), False),
+    ("Sheen Roughness", ("dust_roughness",), False))
 
 def enable_osl(scene: bpy.types.Scene) -> None:
-    """Cycles on the CPU with OSL: the Script node only runs there (and on OptiX)."""
+    """Cycles on the CPU with OSL, for renders that are not an artist's scene (benches, tests, the farm)."""
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
     scene.cycles.shading_system = True
+
+
+def osl_runs(scene: bpy.types.Scene) -> bool:
+    """Whether Cycles, as the scene sets it up, runs Script nodes: OSL on, on the CPU or OptiX."""
+    if not scene.cycles.shading_system:
+        return False
+    if scene.cycles.device == "CPU":
+        return True
+    cycles = bpy.context.preferences.addons.get("cycles")
+    return cycles is not None and cycles.preferences.compute_device_type in ("NONE", "OPTIX")
 
 
 @contextmanager
@@ -94,26 +132,109 @@ def _load_image(texture: Texture, color: bool) -> bpy.types.Image:
     return image
 
 
-def _inputs_by_group(inputs: list[osl.ShaderInput]) -> dict[str, list[osl.ShaderInput]]:
-    groups: dict[str, list[osl.ShaderInput]] = {}
-    for inp in inputs:
-        param = schema.PARAM_BY_NAME.get(inp.name)
-        groups.setdefault(param.lobe if param else _BASE_GROUP, []).append(inp)
-    return groups
+
+def _param_group(name: str) -> str:
+    param = schema.PARAM_BY_NAME.get(name)
+    return param.lobe if param else _BASE_GROUP
 
 
 def _map_of(mat: EnhancedMaterial, name: str) -> ParamMap:
     return mat.base_color if name == "base_color" else mat.params[name]
 
 
-def _set_constant(socket: bpy.types.NodeSocket, value: ParamMap) -> None:
-    v = [float(x) for x in value.value]
-    socket.default_value = (*v[:3], 1.0) if socket.type == "RGBA" else v[0]
+def _parameter_nodes(tree: bpy.types.NodeTree, mat: EnhancedMaterial, inputs: list[osl.ShaderInput],
+                     texture_paths: dict[str, Texture]) -> dict[str, bpy.types.NodeSocket]:
+    """One node per parameter the graph reads, framed by lobe group; their output sockets by name."""
+    groups: dict[str, list[osl.ShaderInput]] = {}
+    for inp in inputs:
+        groups.setdefault(_param_group(inp.name), []).append(inp)
+    dx, dy = _PARAMETER_SPACING
+    sources = {}
+    row = 0
+    for group, members in groups.items():
+        frame = tree.nodes.new("NodeFrame")
+        frame.name, frame.label = f"richmat_frame_{group}", group
+        for inp in members:
+            value = _map_of(mat, inp.name)
+            color = inp.osl_type == "color"
+            if value.is_constant:
+                node = tree.nodes.new("ShaderNodeRGB" if color else "ShaderNodeValue")
+                node.name = node.label = f"const_{inp.name}"
+                v = [float(x) for x in value.value]
+                node.outputs[0].default_value = (*v[:3], 1.0) if color else v[0]
+            else:
+                node = tree.nodes.new("ShaderNodeTexImage")
+                node.name = node.label = f"tex_{inp.name}"
+                node.image = _load_image(texture_paths[inp.name], color)
+            node.parent = frame
+            node.location_absolute = (-2 * dx, -row * dy)
+            sources[inp.name] = node.outputs[0]
+            row += 1
+    return sources
 
 
-def build_material(mat: EnhancedMaterial, texture_paths: dict[str, Texture],
-                   name: str | None = None, node: graph.Node = graph.SURFACE) -> bpy.types.Material:
-    """A Cycles material whose surface is the OSL shader of ``mat``'s pruned graph.
+def _script_node(tree: bpy.types.NodeTree, name: str, pruned: graph.Node) -> bpy.types.ShaderNodeScript:
+    prefer_blender_bundled_modules()  # assigning the script runs Cycles' update, which imports oslquery
+    text = bpy.data.texts.new(f"{name}.osl")
+    text.from_string(osl.osl_source(pruned, name="richmat_enhanced"))
+    script = tree.nodes.new("ShaderNodeScript")
+    script.name, script.label = SCRIPT_NODE, "richmat enhanced (OSL)"
+    script.mode = "INTERNAL"
+    script.script = text
+    script.width = 240
+    try:
+        compile_script_node(script)
+    except RuntimeError:
+        tree.nodes.remove(script)
+        bpy.data.texts.remove(text)
+        raise
+    return script
+
+
+def _export_node(tree: bpy.types.NodeTree, mat: EnhancedMaterial,
+                 sources: dict[str, bpy.types.NodeSocket]) -> bpy.types.Node:
+    """The Principled BSDF exporters read: base, metal, core roughness, coat, dust as sheen, IOR.
+
+    An exporter reads a constant only from the socket itself or a Value/RGB node
+    feeding it, so a constant roughness is written as sqrt(alpha) in the socket.
+    """
+    node = tree.nodes.new("ShaderNodeBsdfPrincipled")
+    node.name, node.label = EXPORT_NODE, "richmat for exporters (glTF, USD)"
+    node.location = (0.0, -1100.0)
+    for socket, params, squared in _EXPORT_SOCKETS:
+        name = next((p for p in params if p in sources), None)
+        constant = name is None or sources[name].node.name.startswith("const_")
+        if squared and not constant:
+            sqrt = tree.nodes.new("ShaderNodeMath")
+            sqrt.operation = "SQRT"
+            sqrt.location = (-200.0, node.location.y)
+            tree.links.new(sources[name], sqrt.inputs[0])
+            tree.links.new(sqrt.outputs[0], node.inputs[socket])
+        elif squared or name is None:
+            value = [float(x) for x in _map_of(mat, name or params[0]).mean()]
+            value = [math.sqrt(v) for v in value] if squared else value
+            if node.inputs[socket].type == "RGBA":  # a colour, or a grey from one value
+                node.inputs[socket].default_value = (*(value * 3)[:3], 1.0)
+            else:
+                node.inputs[socket].default_value = value[0]
+        else:
+            tree.links.new(sources[name], node.inputs[socket])
+    node.inputs["Sheen Weight"].default_value = 1.0 if "dust_weight" in sources else 0.0
+    return node
+
+
+def _output(tree: bpy.types.NodeTree, name: str, target: str, shader: bpy.types.Node,
+            y: float) -> bpy.types.ShaderNodeOutputMaterial:
+    output = tree.nodes.new("ShaderNodeOutputMaterial")
+    output.name, output.target, output.location = name, target, (500.0, y)
+    tree.links.new(shader.outputs[0], output.inputs["Surface"])
+    return output
+
+
+def build_material(mat: EnhancedMaterial, texture_paths: dict[str, Texture], name: str | None = None,
+                   node: graph.Node = graph.SURFACE, graphs: Sequence[Graph] = GRAPHS,
+                   cycles: Graph = "osl") -> bpy.types.Material:
+    """A material whose surface is ``mat``'s pruned graph, as OSL, native nodes or both.
 
     ``texture_paths`` maps parameter names (and ``"base_color"``) to image files
     or images; it must hold every parameter that is a texture in ``mat``. ``node``
@@ -123,69 +244,77 @@ def build_material(mat: EnhancedMaterial, texture_paths: dict[str, Texture],
     material = bpy.data.materials.new(name)
     material.node_tree.nodes.clear()
     try:
-        add_enhanced_nodes(material, mat, texture_paths, node)
+        add_enhanced_nodes(material, mat, texture_paths, node, graphs, cycles)
     except (RuntimeError, KeyError, ValueError):
         bpy.data.materials.remove(material)
         raise
     return material
 
 
-def add_enhanced_nodes(material: bpy.types.Material, mat: EnhancedMaterial,
-                       texture_paths: dict[str, Texture],
-                       node: graph.Node = graph.SURFACE) -> bpy.types.ShaderNodeScript:
-    """Add the Script node, its textures and a Cycles output to ``material``'s tree.
+def add_enhanced_nodes(material: bpy.types.Material, mat: EnhancedMaterial, texture_paths: dict[str, Texture],
+                       node: graph.Node = graph.SURFACE, graphs: Sequence[Graph] = GRAPHS,
+                       cycles: Graph = "osl") -> list[bpy.types.Node]:
+    """Add the parameter nodes, the graphs and their outputs to ``material``'s tree.
 
-    Nodes already in the tree stay (the add-on keeps the original normal-map chain
-    there); the caller links them. Returns the Script node.
+    With one graph, one output reads it (target Cycles for OSL, All for the native
+    graph); with both, Cycles reads ``cycles``'s. Nodes already in the tree stay
+    (the add-on keeps the original normal-map chain there); the caller links
+    them. Returns the nodes whose Normal input takes the normal chain.
     """
     pruned = graph.prune(node, mat.constants())
     if pruned is None:
         raise ValueError(f"{mat.name}: nothing of the graph is left after pruning its constants")
-    inputs = osl.shader_inputs(pruned)
-    textured = [i.name for i in inputs if i.name != "Normal" and not _map_of(mat, i.name).is_constant]
-    missing = [n for n in textured if n not in texture_paths]
+    inputs = [i for i in osl.shader_inputs(pruned) if i.name != "Normal"]
+    missing = [i.name for i in inputs if not _map_of(mat, i.name).is_constant and i.name not in texture_paths]
     if missing:
         raise KeyError(f"no texture path for textured parameters {missing}")
 
-    prefer_blender_bundled_modules()  # assigning the script runs Cycles' update, which imports oslquery
     tree = material.node_tree
-    text = bpy.data.texts.new(f"{material.name}.osl")
-    text.from_string(osl.osl_source(pruned, name="richmat_enhanced"))
-    script = tree.nodes.new("ShaderNodeScript")
-    script.name, script.label = SCRIPT_NODE, "richmat enhanced (OSL)"
-    script.mode = "INTERNAL"
-    script.script = text
-    script.width = 240
-    script.location = (0.0, 0.0)
-    try:
-        compile_script_node(script)
-    except RuntimeError:
-        tree.nodes.remove(script)
-        bpy.data.texts.remove(text)
-        raise
+    shaders: dict[Graph, bpy.types.Node] = {}
+    if "osl" in graphs:
+        shaders["osl"] = _script_node(tree, material.name, pruned)
+    sources = _parameter_nodes(tree, mat, inputs, texture_paths)
+    if "native" in graphs:
+        native = shaders["native"] = tree.nodes.new("ShaderNodeGroup")
+        native.name, native.label = NATIVE_NODE, "richmat enhanced (native nodes)"
+        native.node_tree = native_builder.material_group(pruned)
+        native.width = 240
+        normal = tree.nodes.new("ShaderNodeNewGeometry")
+        normal.location = (-300.0, -700.0)
+        tree.links.new(normal.outputs["Normal"], native.inputs["Normal"])
+    for n, shader in enumerate(shaders.values()):
+        shader.location = (0.0, -500.0 * n)
+        for inp in inputs:
+            tree.links.new(sources[inp.name], shader.inputs[inp.name])
+    if len(shaders) == 1:
+        only, shader = next(iter(shaders.items()))
+        _output(tree, OUTPUT_NODE, "CYCLES" if only == "osl" else "ALL", shader, 0.0)
+        return [shader]
+    _output(tree, OUTPUT_NODE, "CYCLES", shaders[cycles], 0.0)
+    _output(tree, EEVEE_OUTPUT_NODE, "EEVEE", shaders["native"], -300.0)
+    export = _export_node(tree, mat, sources)
+    _output(tree, EXPORT_OUTPUT_NODE, "ALL", export, -600.0).is_active_output = True
+    return [*shaders.values(), export]
 
-    output = tree.nodes.new("ShaderNodeOutputMaterial")
-    output.name = OUTPUT_NODE
-    output.target = "CYCLES"
-    output.location = (400.0, 0.0)
-    tree.links.new(script.outputs["BSDF"], output.inputs["Surface"])
 
-    for inp in inputs:
-        if inp.name != "Normal" and inp.name not in textured:
-            _set_constant(script.inputs[inp.name], _map_of(mat, inp.name))
+def constant_sockets(material: bpy.types.Material | None) -> dict[schema.Param, bpy.types.NodeSocket]:
+    """The output sockets of the material's ``const_<parameter>`` nodes, which hold its constant parameters."""
+    nodes = material.node_tree.nodes if material is not None and material.node_tree else []
+    return {schema.PARAM_BY_NAME[n.name[len("const_"):]]: n.outputs[0] for n in nodes
+            if n.name.startswith("const_") and n.name[len("const_"):] in schema.PARAM_BY_NAME}
 
-    dx, dy = _TEXTURE_SPACING
-    row = 0
-    for group, members in _inputs_by_group([i for i in inputs if i.name in textured]).items():
-        frame = tree.nodes.new("NodeFrame")
-        frame.name = f"richmat_frame_{group}"
-        frame.label = group
-        for inp in members:
-            tex = tree.nodes.new("ShaderNodeTexImage")
-            tex.name = tex.label = f"tex_{inp.name}"
-            tex.image = _load_image(texture_paths[inp.name], color=inp.osl_type == "color")
-            tex.parent = frame
-            tex.location_absolute = (-2 * dx, -row * dy)
-            tree.links.new(tex.outputs["Color"], script.inputs[inp.name])
-            row += 1
-    return script
+
+def use_in_cycles(material: bpy.types.Material, which: Graph) -> None:
+    """Feed the Cycles output from the OSL Script node or the native group; both stay in the tree."""
+    tree = material.node_tree
+    source = tree.nodes[SCRIPT_NODE if which == "osl" else NATIVE_NODE]
+    tree.links.new(source.outputs[0], tree.nodes[OUTPUT_NODE].inputs["Surface"])
+
+
+def cycles_graph(material: bpy.types.Material) -> Graph | None:
+    """Which graph the Cycles output reads, None for a material without both."""
+    nodes = material.node_tree.nodes if material.node_tree else {}
+    if SCRIPT_NODE not in nodes or NATIVE_NODE not in nodes or OUTPUT_NODE not in nodes:
+        return None
+    links = nodes[OUTPUT_NODE].inputs["Surface"].links
+    return "osl" if links and links[0].from_node.name == SCRIPT_NODE else "native"

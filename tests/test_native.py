@@ -1,0 +1,201 @@
+"""The native node graph: its fits, its groups per type, its Cycles renders against OSL's, the farm's --graph."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from batch import options
+from richmat_addon.core import albedo_fits, graph
+from richmat_addon.core.albedo_fit_data import DIELECTRIC, DIELECTRIC_OVER_E, SHEEN
+from richmat_addon.core.enhance import enhance
+from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
+from torch_models.brdf import lobes, tables
+
+from .test_osl import save_materials
+
+REPO = Path(__file__).resolve().parents[1]
+PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
+FLIP_LIMIT = 0.05  # per type at 24 px and 16 samples; bench/native_agreement.py measures it properly
+
+
+def type_material(type_: int, metal: bool = False) -> EnhancedMaterial:
+    """A constant material of ``type_``, as the enhancement draws it."""
+    pbr = PbrInputs(f"type{type_}{'_metal' if metal else ''}", ParamMap.constant(0.6, 0.3, 0.2),
+                    ParamMap.constant(0.4), ParamMap.constant(1.0 if metal else 0.0))
+    return enhance(pbr, type_, seed=1)
+
+
+def test_the_fits_follow_the_torch_tables():
+    rng = np.random.default_rng(0)
+    mu, rho, ior = rng.uniform(0.1, 1, 400), rng.uniform(0.01, 1, 400), rng.uniform(1.3, 1.8, 400)
+    t = {k: torch.from_numpy(v)[:, None] for k, v in {"mu": mu, "alpha": rho ** 2, "ior": ior}.items()}
+    with torch.no_grad():
+        albedo = lobes.dielectric_albedo(t["mu"], t["alpha"], t["ior"], torch.ones(400, 3, dtype=torch.float64))
+        e = tables.ggx_e(t["alpha"][:, 0], t["mu"][:, 0]).numpy()
+        sheen = lobes.sheen_albedo(t["mu"][:, 0], torch.from_numpy(rho)).numpy()
+    albedo = albedo[:, 0].numpy()
+    fitted = np.array([albedo_fits.dielectric(DIELECTRIC, m, r * r, n) for m, r, n in zip(mu, rho, ior)])
+    over_e = np.array([albedo_fits.dielectric(DIELECTRIC_OVER_E, m, r * r, n) for m, r, n in zip(mu, rho, ior)])
+    assert np.abs(fitted - albedo).max() <= DIELECTRIC.max_error + 1e-3
+    assert np.abs(over_e - albedo / e).max() <= DIELECTRIC_OVER_E.max_error + 1e-3
+    rough = rho >= 0.1  # the sheen fit's domain
+    fitted_sheen = np.array([albedo_fits.sheen(SHEEN, m, r) for m, r in zip(mu[rough], rho[rough])])
+    assert np.abs(fitted_sheen - sheen[rough]).max() <= SHEEN.max_error + 1e-3
+    assert not math.isnan(albedo_fits.dielectric(DIELECTRIC, 0.0, 0.0, 1.5))  # grazing and smooth: finite
+
+
+FIT_NODES = """
+import json, math
+import numpy as np
+import bpy
+from richmat_addon.blender import native_builder
+
+bpy.ops.wm.read_factory_settings(use_empty=True)
+scene = bpy.context.scene
+scene.render.engine = "CYCLES"
+scene.cycles.samples, scene.cycles.filter_width = 1, 0.01  # every sample inside its pixel
+scene.cycles.use_denoising = False
+scene.render.resolution_x = scene.render.resolution_y = SIZE
+scene.render.threads_mode, scene.render.threads = "FIXED", 1
+scene.view_settings.view_transform = "Standard"
+scene.render.image_settings.file_format = "OPEN_EXR"
+scene.render.image_settings.color_depth = "32"
+bpy.ops.mesh.primitive_plane_add(size=4.0, rotation=(math.pi / 2, 0.0, 0.0))
+cam = bpy.data.objects.new("cam", bpy.data.cameras.new("cam"))
+cam.data.type, cam.data.ortho_scale = "ORTHO", 2.0
+cam.location, cam.rotation_euler = (0.0, -5.0, 0.0), (math.pi / 2, 0.0, 0.0)
+scene.collection.objects.link(cam)
+scene.camera = cam
+
+out = {}
+for ior in IORS:
+    mat = bpy.data.materials.new("fit")
+    tree = mat.node_tree
+    tree.nodes.clear()
+    b = native_builder._Builder(tree)
+    window = b.node("ShaderNodeSeparateXYZ")
+    b.feed(window.inputs[0], b.node("ShaderNodeTexCoord").outputs["Window"])
+    # One value per pixel, whatever the sample's position in it: the pixel's centre.
+    mu, y = ((b.math("FLOOR", b.math("MULTIPLY", window.outputs[k], SIZE)) for k in (0, 1)))
+    mu, y = (b.math("DIVIDE", b.math("ADD", v, 0.5), SIZE) for v in (mu, y))
+    diel = b.group(native_builder._dielectric_albedo(), Cosine=mu, Alpha=b.math("MULTIPLY", y, y), IOR=ior)
+    sheen = b.group(native_builder._sheen_albedo(), Cosine=mu, Roughness=y)
+    rgb = b.node("ShaderNodeCombineXYZ")
+    for k, socket in enumerate((diel.outputs["Albedo"], diel.outputs["Albedo over E"], sheen.outputs["Albedo"])):
+        b.feed(rgb.inputs[k], socket)
+    emission = b.node("ShaderNodeEmission")
+    b.feed(emission.inputs["Color"], rgb.outputs[0])
+    b.feed(tree.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"], emission.outputs[0])
+    bpy.data.objects["Plane"].data.materials.append(mat)
+    bpy.data.objects["Plane"].active_material = mat
+    scene.render.filepath = f"//fit_{ior}.exr"
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(bpy.path.abspath(scene.render.filepath))
+    out[str(ior)] = np.array(img.pixels[:], np.float32).reshape(SIZE, SIZE, 4)[..., :3].tolist()
+print("RESULT " + json.dumps(out))
+"""
+
+
+def test_the_fit_nodes_compute_the_core_fits(blender_run):
+    """Emission of (A, A/E, R) over a grid of (mu, sqrt(alpha) or roughness), one grid point per pixel."""
+    size, iors = 16, [1.3, 1.5, 1.8]
+    result = blender_run(f"SIZE, IORS = {size}, {iors!r}\n" + FIT_NODES)
+    centres = (np.arange(size) + 0.5) / size
+    for ior in iors:
+        img = np.asarray(result[str(ior)])  # bottom row first: row index = y
+        want = np.array([[[albedo_fits.dielectric(DIELECTRIC, m, y * y, ior),
+                           albedo_fits.dielectric(DIELECTRIC_OVER_E, m, y * y, ior),
+                           albedo_fits.sheen(SHEEN, m, y)] for m in centres] for y in centres])
+        assert np.abs(img - want).max() < 1e-4, ior
+
+
+PER_TYPE = """
+import json, time
+import numpy as np
+import bpy
+from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
+prefer_blender_bundled_modules()
+from richmat_addon.blender import cycles_builder, native_builder, preview_scene
+from richmat_addon.core import graph
+from richmat_addon.core.maps import EnhancedMaterial, ParamMap
+from richmat_addon.core.preview import PreviewScene
+
+def load_material(npz, name):
+    data = np.load(npz)
+    maps = {k.split(".", 1)[1]: ParamMap(data[k]) for k in data.files if k.startswith(name + ".")}
+    return EnhancedMaterial(name, 0, 0, maps.pop("base_color"), maps)
+
+def trees(material):
+    found, stack = [], [material.node_tree]
+    while stack:
+        tree = stack.pop()
+        found.append(tree)
+        stack += [n.node_tree for n in tree.nodes if n.type == "GROUP"]
+    return found
+
+out = {}
+for name in NAMES:
+    mat = load_material(NPZ, name)
+    row = out[name] = {}
+    for which in ("osl", "native"):
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        scene = bpy.context.scene
+        cycles_builder.enable_osl(scene)
+        scene.cycles.shading_system = which == "osl"
+        material = cycles_builder.build_material(mat, {}, name, cycles=which)
+        native = material.node_tree.nodes[cycles_builder.NATIVE_NODE].node_tree
+        row["lobe_nodes"] = sorted(n.label for n in native.nodes if n.type == "GROUP" and not n.label.startswith("layer"))
+        row["groups"] = sorted({t.name for t in trees(material)[1:]})
+        row["links_valid"] = all(link.is_valid for t in trees(material) for link in t.links)
+        row["outputs"] = {n.name: [n.target, n.inputs["Surface"].links[0].from_node.name, n.is_active_output]
+                          for n in material.node_tree.nodes if n.type == "OUTPUT_MATERIAL"}
+        preview_scene.setup(scene, PreviewScene(resolution=SIZE), PROBE, material, SAMPLES)
+        scene.render.threads_mode, scene.render.threads = "FIXED", 1
+        start = time.perf_counter()
+        preview_scene.render_exr(scene, Path(f"{name}_{which}.exr").resolve())
+        row[which + "_seconds"] = time.perf_counter() - start
+print("RESULT " + json.dumps(out))
+"""
+
+
+def test_each_type_builds_its_groups_and_renders_like_osl(blender_run, tmp_path: Path):
+    from richmat_addon.core.folder_io import read_exr
+    from torch_models.render.flip import flip_map
+    from torch_models.render.tonemap import agx
+
+    materials = {m.name: m for m in [type_material(t) for t in range(6)] + [type_material(2, metal=True)]}
+    npz = save_materials(tmp_path / "materials.npz", materials)
+    result = blender_run(f"from pathlib import Path\nNPZ, NAMES, PROBE = {npz!r}, {list(materials)!r}, "
+                         f"Path({str(PROBE)!r})\nSIZE, SAMPLES = 24, 16\n" + PER_TYPE)
+    for name, mat in materials.items():
+        row = result[name]
+        lobes = [lobe.name for lobe in graph.iter_lobes(graph.prune(graph.SURFACE, mat.constants()))]
+        assert row["lobe_nodes"] == sorted(lobes), name
+        assert row["links_valid"], name
+        assert any(g.startswith("richmat native (") for g in row["groups"]), row["groups"]
+        assert row["outputs"]["richmat_output_eevee"][:2] == ["EEVEE", "richmat_native"]
+        assert row["outputs"]["richmat_output_export"] == ["ALL", "richmat_export", True]
+        osl, native = (read_exr(tmp_path / f"{name}_{w}.exr") for w in ("osl", "native"))
+        ball = native[..., 3] > 0.5
+        rgb = native[..., :3][ball]
+        assert np.isfinite(rgb).all() and rgb.mean() > 0.05, name  # lit, not black
+        pink = (rgb[:, 0] > 0.8) & (rgb[:, 1] < 0.1) & (rgb[:, 2] > 0.8)
+        assert pink.mean() < 0.01, name  # not Blender's missing-shader magenta
+        _, flip = flip_map(agx(osl[..., :3]), agx(native[..., :3]))
+        assert flip < FLIP_LIMIT, (name, flip)
+    assert "richmat conductor v1" in result["type2_metal"]["groups"]
+    assert "richmat tinted dielectric v1" in result["type5"]["groups"]
+
+
+def test_the_farm_takes_the_graph_and_hashes_it():
+    parser = options.build_parser()
+    base = ["--input", "in", "--output", "out"]
+    osl, native = (options.settings_of(parser.parse_args(base + ["--graph", g])) for g in ("osl", "native"))
+    assert parser.parse_args(base).graph == "osl"
+    assert native.graph == "native" and native.hash() != osl.hash()  # the beauty frames differ
+    with pytest.raises(SystemExit):
+        parser.parse_args(base + ["--graph", "svm"])
