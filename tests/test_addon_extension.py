@@ -177,8 +177,7 @@ n_materials = len(bpy.data.materials)
 assert run_op("uplift_material")[0] == {{"FINISHED"}}
 again = len(bpy.data.materials)
 # Edit one constant in place (the panel does exactly this), then bake.
-script_node = obj.active_material.node_tree.nodes["richmat_osl"]
-script_node.inputs["coat_ior"].default_value = 1.7
+obj.active_material.node_tree.nodes["const_coat_ior"].outputs[0].default_value = 1.7
 scene.richmat.output_dir = {str(tmp_path / "baked")!r}
 res, err = run_op("bake_parameters")
 assert res == {{"FINISHED"}}, err
@@ -209,12 +208,15 @@ print("RESULT " + json.dumps(dict(
     assert result["original_nodes"] == 7  # principled, output, 3 images, separate colour, normal map
     assert result["n_materials"] == result["again"] == 2
     nodes = set(result["nodes"])
-    assert {"richmat_osl", "richmat_output", "normal_map", "tex_base_color", "tex_coat_weight",
-            "richmat_frame_coat", "richmat_frame_specular", "richmat_frame_original"} <= nodes or \
-        {"richmat_osl", "richmat_output", "normal_map", "tex_base_color", "richmat_frame_specular"} <= nodes
-    assert ["normal_map", "richmat_osl", "Normal"] in result["links"]  # normal chain reused unchanged
-    assert ["richmat_osl", "richmat_output", "Surface"] in result["links"]
-    assert result["engine"] == ["CYCLES", "CPU", True]
+    assert {"richmat_osl", "richmat_native", "richmat_output", "richmat_output_eevee", "richmat_output_export",
+            "normal_map", "tex_base_color", "const_coat_ior", "richmat_frame_coat", "richmat_frame_specular",
+            "richmat_frame_original"} <= nodes
+    for shader in ("richmat_osl", "richmat_native", "richmat_export"):  # normal chain reused unchanged
+        assert ["normal_map", shader, "Normal"] in result["links"]
+    # Uplift leaves the render settings alone; Cycles without OSL renders the native graph, EEVEE too.
+    assert result["engine"] == ["CYCLES", "CPU", False]
+    assert ["richmat_native", "richmat_output", "Surface"] in result["links"]
+    assert ["richmat_native", "richmat_output_eevee", "Surface"] in result["links"]
     assert result["finite"]
     # Type 2 adds a sharp clearcoat highlight of the point light on a rough paint.
     assert result["after"][1] > 2 * result["before"][1], (result["before"], result["after"])

@@ -137,6 +137,7 @@ def test_diffuse_base_reads_t_as_the_torch_renderer_does(blender_run, tmp_path: 
 PREVIEW = r'''
 obj = procedural_asset(TMP, size=16)
 scene = bpy.context.scene
+scene.render.engine, scene.cycles.shading_system = "CYCLES", True  # the neural preview is an OSL shader
 scene.richmat.enhancement_type = "2"
 scene.richmat.output_dir = TMP + "/baked"
 scene.richmat.fit_steps = 5

@@ -3,8 +3,8 @@
 A baked folder has the layout ``python -m torch_models enhance`` writes (one
 half-float EXR per textured parameter, ``params.json`` with the constants,
 ``material.mtlx``), so the torch backend fits it as it is. Constants the user
-edited in the panel (the Script node's unlinked sockets) override the sampled
-ones. Each material bakes into its own folder, claimed by the material's id in
+edited in the panel (the ``const_<parameter>`` nodes both graphs read) override
+the sampled ones. Each material bakes into its own folder, claimed by the material's id in
 ``params.json``: a folder claimed by another material is never written into.
 """
 from __future__ import annotations
@@ -15,7 +15,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from ..core import material_folder, schema
+from ..core import material_folder
 from ..core.folder_io import FormatError
 from ..core.maps import EnhancedMaterial, ParamMap
 from . import cycles_builder, uplift
@@ -56,15 +56,9 @@ def claim_folder(root: Path, material: bpy.types.Material) -> Path:
 
 
 def edited_constants(enhanced: bpy.types.Material | None) -> dict[str, ParamMap]:
-    """Values of the Script node's unlinked parameter sockets (the panel edits them)."""
-    script = enhanced.node_tree.nodes.get(cycles_builder.SCRIPT_NODE) if enhanced else None
-    if script is None:
-        return {}
+    """Values of the material's constant parameter nodes (the panel edits them)."""
     edits = {}
-    for socket in script.inputs:
-        param = schema.PARAM_BY_NAME.get(socket.name)
-        if param is None or socket.is_linked:
-            continue
+    for param, socket in cycles_builder.constant_sockets(enhanced).items():
         value = socket.default_value
         values = list(value)[:3] if param.channels == 3 else [value]
         edits[param.name] = ParamMap(np.clip(np.asarray(values, np.float32), param.lo, param.hi))
@@ -91,7 +85,8 @@ def bake(obj: bpy.types.Object, all_slots: bool, root: Path, relink: bool = True
         folder = claim_folder(root, p.original)
         files = write_folder(folder, mat, p.original)
         if relink:
-            rebuilt = uplift.build_enhanced(p, mat, files, json.loads(enhanced.richmat.record or "{}"))
+            rebuilt = uplift.build_enhanced(p, mat, files, json.loads(enhanced.richmat.record or "{}"),
+                                            cycles_builder.cycles_graph(enhanced) or "native")
             rebuilt.richmat.bake_dir = str(folder)
             rebuilt.richmat.neural_dir = enhanced.richmat.neural_dir
             uplift.install(p, rebuilt)

@@ -15,10 +15,8 @@ from ..core import material_folder, neural_encoder
 from ..core.folder_io import FormatError
 from ..core.prompt import prompt_type
 from . import bake, cycles_builder, mesh_maps, neural_assets, neural_backend, uplift
+from .cycles_builder import OSL_SETTINGS
 from .pbr_source import InputProblem
-
-OSL_HINT = ("turn on Open Shading Language in Render Properties with the CPU device (or an OptiX GPU), "
-            "then Toggle Cycles Graph for the exact shader")
 
 
 def _settings(context: bpy.types.Context):
@@ -76,7 +74,8 @@ class RICHMAT_OT_uplift_material(bpy.types.Operator):
 def _engines_note(cycles: cycles_builder.Graph) -> str:
     if cycles == "osl":
         return "Cycles renders the exact OSL shader, EEVEE and Cycles without OSL the native nodes"
-    return f"Cycles and EEVEE render the native nodes (Cycles here cannot run OSL: {OSL_HINT})"
+    return (f"Cycles and EEVEE render the native nodes (Cycles here cannot run OSL: {OSL_SETTINGS}, "
+            "then Toggle Cycles Graph for the exact shader)")
 
 
 class RICHMAT_OT_toggle_cycles_graph(bpy.types.Operator):
@@ -99,7 +98,7 @@ class RICHMAT_OT_toggle_cycles_graph(bpy.types.Operator):
     def execute(self, context: bpy.types.Context) -> set[str]:
         target: cycles_builder.Graph = "native" if cycles_builder.cycles_graph(_enhanced(context)) == "osl" else "osl"
         if target == "osl" and uplift.cycles_choice(context.scene) != "osl":
-            self.report({"ERROR"}, f"Cycles cannot run OSL with these settings: {OSL_HINT.split(', then')[0]}")
+            self.report({"ERROR"}, f"Cycles cannot run OSL with these settings: {OSL_SETTINGS}")
             return {"CANCELLED"}
         obj = context.active_object
         switched = []

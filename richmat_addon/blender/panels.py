@@ -1,8 +1,8 @@
 """The "Richmat" sidebar tab, in the 3D Viewport and in the Shader Editor.
 
-Parameters are shown per lobe from the enhanced material's Script node: an
-unlinked socket is a constant the user edits in place (Bake keeps the edit), a
-linked one is a texture and is shown as such.
+Parameters are shown per lobe from the enhanced material's parameter nodes,
+which both graphs read: a ``const_<parameter>`` node is a constant the user
+edits in place (Bake keeps the edit), a ``tex_<parameter>`` one a texture.
 """
 from __future__ import annotations
 
@@ -10,8 +10,7 @@ import bpy
 
 from ..core import schema
 from ..core.enhancement_types import TYPES
-from . import uplift
-from .cycles_builder import SCRIPT_NODE
+from . import cycles_builder, preview_neural, uplift
 
 _LOBE_TITLES = {"dust": "Dust / Fuzz", "coat": "Clearcoat", "conductor": "Conductor", "mix": "Metalness",
                 "specular": "Core / Haze", "dielectric": "Dielectric", "inner": "Inner Scattering",
@@ -36,6 +35,7 @@ def draw_richmat(layout: bpy.types.UILayout, context: bpy.types.Context) -> None
     col.prop(s, "all_slots")
     col.operator("richmat.uplift_material", icon="SHADING_RENDERED")
     col.operator("richmat.switch_material", icon="ARROW_LEFTRIGHT")
+    col.operator("richmat.toggle_cycles_graph", icon="NODETREE")
     col.operator("richmat.unwrap_uvs", icon="UV")
     col.separator()
     col.prop(s, "output_dir")
@@ -53,25 +53,28 @@ def draw_richmat(layout: bpy.types.UILayout, context: bpy.types.Context) -> None
 
 
 def draw_parameters(layout: bpy.types.UILayout, enhanced: bpy.types.Material) -> None:
-    script = enhanced.node_tree.nodes.get(SCRIPT_NODE)
     box = layout.box()
     box.label(text=f"{enhanced.name}: type {enhanced.richmat.type}, seed {enhanced.richmat.seed}")
-    if script is None:
+    nodes = enhanced.node_tree.nodes
+    if preview_neural.SCRIPT_NODE in nodes:
         box.label(text="Neural preview active (switch to edit parameters)")
         return
-    by_lobe: dict[str, list[bpy.types.NodeSocket]] = {}
-    for socket in script.inputs:
-        param = schema.PARAM_BY_NAME.get(socket.name)
-        if param is not None:
-            by_lobe.setdefault(param.lobe, []).append(socket)
-    for lobe, sockets in by_lobe.items():
+    which = cycles_builder.cycles_graph(enhanced)
+    if which is not None:
+        box.label(text="Cycles: exact OSL shader" if which == "osl" else "Cycles: native nodes", icon="NODETREE")
+    constants = cycles_builder.constant_sockets(enhanced)
+    by_lobe: dict[str, list[schema.Param]] = {}
+    for param in schema.PARAMS:
+        if param in constants or f"tex_{param.name}" in nodes:
+            by_lobe.setdefault(param.lobe, []).append(param)
+    for lobe, params in by_lobe.items():
         sub = box.column(align=True)
         sub.label(text=_LOBE_TITLES.get(lobe, lobe))
-        for socket in sockets:
-            if socket.is_linked:
-                sub.label(text=f"{socket.name}: texture", icon="IMAGE_DATA")
+        for param in params:
+            if param in constants:
+                sub.prop(constants[param], "default_value", text=param.name)
             else:
-                sub.prop(socket, "default_value", text=socket.name)
+                sub.label(text=f"{param.name}: texture", icon="IMAGE_DATA")
     box.label(text="Lobes with weight 0 are pruned; Uplift again to change the type")
 
 

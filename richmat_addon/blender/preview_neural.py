@@ -5,7 +5,8 @@ normal and UV chains) around a Script node whose OSL source
 ``core.neural_osl`` generates from the decoder weights the latents were fitted
 against. Its neural lobe is lit by the scene's world (an Environment Texture,
 or the Background colour); the diffuse base ``T c`` by everything (docs/addon.md).
-OSL runs on the CPU and OptiX only.
+OSL runs in Cycles on the CPU and OptiX only: the material's other output (target
+All) holds the baked enhanced material's native graph, which EEVEE renders.
 """
 from __future__ import annotations
 
@@ -19,8 +20,8 @@ from ..core.folder_io import FormatError
 from ..core.neural_osl import neural_osl_source
 from ..core.neural_encoder import WEIGHTS_FILE
 from ..core.tensor_file import read_safetensors
-from . import neural_assets, uplift
-from .cycles_builder import COLOR_SPACE_COLOR, COLOR_SPACE_DATA, compile_script_node, enable_osl
+from . import cycles_builder, neural_assets, uplift
+from .cycles_builder import COLOR_SPACE_COLOR, COLOR_SPACE_DATA, OSL_SETTINGS, compile_script_node
 from .osl_env import prefer_blender_bundled_modules
 from .pbr_source import InputProblem
 
@@ -69,8 +70,9 @@ def _image(tree: bpy.types.NodeTree, name: str, file: Path, color: bool, row: in
 
 
 def add_neural_nodes(material: bpy.types.Material, text: bpy.types.Text, baked: material_folder.MaterialFolder,
-                     neural: neural_folder.NeuralFolder, scene: bpy.types.Scene) -> bpy.types.Node:
-    """Script node, latent/base/energy textures or constants, and the output."""
+                     neural: neural_folder.NeuralFolder, scene: bpy.types.Scene) -> list[bpy.types.Node]:
+    """Script node, latent/base/energy textures or constants and the Cycles output; the baked
+    material's native graph on an output for every other engine. Returns the nodes taking the normal."""
     prefer_blender_bundled_modules()  # assigning the script runs Cycles' update, which imports oslquery
     tree = material.node_tree
     script = tree.nodes.new("ShaderNodeScript")
@@ -105,7 +107,9 @@ def add_neural_nodes(material: bpy.types.Material, text: bpy.types.Text, baked: 
     script.inputs["probe_rotation"].default_value = rotation
     script.inputs["world_color"].default_value = (*color, 1.0)
     script.inputs["samples"].default_value = SAMPLES
-    return script
+    fallback = cycles_builder.add_enhanced_nodes(material, baked.material(), {
+        name: str(path) for name, path in baked.texture_paths.items()}, graphs=("native",))
+    return [script, *fallback]
 
 
 def preview(context: bpy.types.Context) -> list[str]:
@@ -131,11 +135,15 @@ def preview(context: bpy.types.Context) -> list[str]:
             raise InputProblem(f"{p.original.name}: its latents were fitted against another decoder; "
                                "run Fit Neural Material again")
         work.append((p, baked, neural))
+    scene = context.scene
+    if scene.render.engine == "CYCLES" and not cycles_builder.osl_runs(scene):
+        raise InputProblem(f"the neural preview is an OSL shader and Cycles cannot run OSL with these settings: "
+                           f"{OSL_SETTINGS}")
     text = _shader_text(weights, digest)
     lines = []
     for p, baked, neural in work:
         material = uplift.copy_with_chains(
-            p, lambda m: add_neural_nodes(m, text, baked, neural, context.scene))
+            p, lambda m: add_neural_nodes(m, text, baked, neural, scene))
         name = p.original.name + SUFFIX
         previous = bpy.data.materials.get(name)
         if previous is not None:
@@ -144,12 +152,12 @@ def preview(context: bpy.types.Context) -> list[str]:
         material.name = name
         p.obj.material_slots[p.slot_index].material = material
         lines.append(name)
-    enable_osl(context.scene)
     return lines
 
 
 class RICHMAT_OT_preview_neural(bpy.types.Operator):
-    """Render the fitted neural material with an OSL shader that runs the decoder (CPU or OptiX)"""
+    """Render the fitted neural material with an OSL shader that runs the decoder (Cycles on the CPU or OptiX;
+    EEVEE shows the baked enhanced material)"""
 
     bl_idname = "richmat.preview_neural"
     bl_label = "Preview Neural Material"
@@ -174,6 +182,6 @@ class RICHMAT_OT_preview_neural(bpy.types.Operator):
         except (InputProblem, OSError, RuntimeError) as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        self.report({"INFO"}, "Neural preview: " + ", ".join(lines) + ". Cycles on the CPU with OSL; "
-                    "the neural lobe is lit by the world only")
+        self.report({"INFO"}, "Neural preview: " + ", ".join(lines) + ". Cycles with OSL renders the decoder "
+                    "(the neural lobe lit by the world only); EEVEE the baked enhanced material's native nodes")
         return {"FINISHED"}

@@ -1,8 +1,9 @@
 """Uplift: a Principled BSDF material to its enhanced twin, next to the original.
 
 The original material is never modified. Its copy keeps the normal-map chain
-(and the texture-coordinate nodes of the textures) unchanged and gets the OSL
-Script node of ``cycles_builder``, fed by parameter maps that ``core.enhance``
+(and the texture-coordinate nodes of the textures) unchanged and gets both graphs
+of ``cycles_builder`` (the exact OSL Script node and the native node group), fed
+by parameter maps that ``core.enhance``
 computes from the original's pixels at a preview resolution (numpy, no
 per-pixel Python); Bake recomputes them at the inputs' full resolution.
 Re-running replaces the previous enhanced copy (``user_remap``), so slots,
@@ -130,11 +131,11 @@ def _output(tree: bpy.types.NodeTree, source: tuple[str, str]) -> bpy.types.Node
     return next(s for s in node.outputs if s.identifier == source[1])
 
 
-def copy_with_chains(p: SlotPlan, add_nodes: Callable[[bpy.types.Material], bpy.types.Node]
+def copy_with_chains(p: SlotPlan, add_nodes: Callable[[bpy.types.Material], list[bpy.types.Node]]
                      ) -> bpy.types.Material:
     """The original's copy with only its normal and UV chains kept, plus the nodes ``add_nodes`` makes.
 
-    ``add_nodes`` returns the shader node whose ``Normal`` input takes the normal
+    ``add_nodes`` returns the shader nodes whose ``Normal`` input takes the normal
     chain; every ``tex_*`` image node it adds gets the original textures' UVs.
     """
     original = p.original
@@ -153,12 +154,13 @@ def copy_with_chains(p: SlotPlan, add_nodes: Callable[[bpy.types.Material], bpy.
         tree.nodes.remove(node)
     _frame_kept(tree)
     try:
-        shader = add_nodes(copy)
+        shaders = add_nodes(copy)
     except (RuntimeError, KeyError, ValueError, OSError):
         bpy.data.materials.remove(copy)
         raise
     if normal_src:
-        tree.links.new(_output(tree, normal_src), shader.inputs["Normal"])
+        for shader in shaders:
+            tree.links.new(_output(tree, normal_src), shader.inputs["Normal"])
     if vector_src:
         for node in tree.nodes:
             if node.bl_idname == "ShaderNodeTexImage" and node.name.startswith("tex_"):
@@ -168,10 +170,10 @@ def copy_with_chains(p: SlotPlan, add_nodes: Callable[[bpy.types.Material], bpy.
     return copy
 
 
-def build_enhanced(p: SlotPlan, mat: EnhancedMaterial, textures: dict[str, Any],
-                   record: dict[str, Any]) -> bpy.types.Material:
-    """The original's copy with the enhanced OSL graph in place of its Principled BSDF."""
-    enhanced = copy_with_chains(p, lambda m: cycles_builder.add_enhanced_nodes(m, mat, textures))
+def build_enhanced(p: SlotPlan, mat: EnhancedMaterial, textures: dict[str, Any], record: dict[str, Any],
+                   cycles: cycles_builder.Graph) -> bpy.types.Material:
+    """The original's copy with both enhanced graphs in place of its Principled BSDF, Cycles reading ``cycles``."""
+    enhanced = copy_with_chains(p, lambda m: cycles_builder.add_enhanced_nodes(m, mat, textures, cycles=cycles))
     settings = enhanced.richmat
     settings.type, settings.seed = mat.type, mat.seed
     settings.record = json.dumps(record, default=_jsonable)
@@ -231,9 +233,25 @@ def remove_material(material: bpy.types.Material) -> None:
             bpy.data.texts.remove(text)
 
 
-def uplift(obj: bpy.types.Object, all_slots: bool, requested: str, seed: int,
+def cycles_choice(scene: bpy.types.Scene) -> cycles_builder.Graph:
+    """The graph Cycles should read: the exact OSL one where the scene's Cycles runs it."""
+    return "osl" if cycles_builder.osl_runs(scene) else "native"
+
+
+def keep_cycles_renderable(scene: bpy.types.Scene) -> list[str]:
+    """Point every enhanced material that Cycles reads as OSL at its native graph when Cycles cannot
+    run OSL in ``scene`` (a GPU without OptiX, or OSL off): a Script node renders black there."""
+    if cycles_choice(scene) == "osl":
+        return []
+    switched = [m for m in bpy.data.materials if is_enhanced(m) and cycles_builder.cycles_graph(m) == "osl"]
+    for material in switched:
+        cycles_builder.use_in_cycles(material, "native")
+    return [m.name for m in switched]
+
+
+def uplift(obj: bpy.types.Object, all_slots: bool, requested: str, seed: int, cycles: cycles_builder.Graph,
            max_size: int | None = PREVIEW_SIZE) -> list[str]:
-    """Uplift the object's materials; returns one line per material for the report.
+    """Uplift the object's materials, Cycles reading ``cycles``; returns one line per material for the report.
 
     Every slot is checked and enhanced before the first datablock is created, so
     bad input anywhere changes nothing.
@@ -245,7 +263,7 @@ def uplift(obj: bpy.types.Object, all_slots: bool, requested: str, seed: int,
                     for name, pmap in textured_maps(mat).items()}
         record = {"requested_type": requested, "settings": mat.settings}
         try:
-            enhanced = build_enhanced(p, mat, textures, record)
+            enhanced = build_enhanced(p, mat, textures, record, cycles)
         except (RuntimeError, KeyError, ValueError):
             for image in textures.values():
                 bpy.data.images.remove(image)
