@@ -1,7 +1,7 @@
 """Blender side, render: the dataset's camera orbit, light, Cycles settings and outputs.
 
-Two passes over the orbit. The beauty pass path traces the enhanced OSL
-materials (AgX, PNG through the scene output). The intrinsics pass shades with
+Two passes over the orbit. The beauty pass path traces the enhanced materials,
+as OSL or as the native node graph (AgX, PNG through the scene output). The intrinsics pass shades with
 SVM, because Cycles writes no AOVs under OSL: a few samples, no bounces, no
 denoising, and through the compositor's File Output node one multilayer EXR
 per frame with world normals and positions (Cycles passes) and the AOVs
@@ -29,11 +29,12 @@ FRAMING_MARGIN = 1.08
 
 
 def configure_cycles(scene: bpy.types.Scene, resolution: int, samples: int, threshold: float,
-                     threads: int) -> None:
+                     threads: int, graph: str = "osl") -> None:
+    """The beauty pass; ``graph`` "osl" shades with OSL (the Script node runs only there), "native" with SVM."""
     scene.render.engine = "CYCLES"
     cy = scene.cycles
     cy.device = "CPU"
-    cy.shading_system = True  # our enhanced material is an OSL shader
+    cy.shading_system = graph == "osl"
     cy.samples = samples
     cy.use_adaptive_sampling = True
     cy.adaptive_threshold = threshold

@@ -3,9 +3,9 @@
 ``prepare``: import, check, unwrap, normalise, enhance every material into
 ``materials/<name>/``, save ``scene.blend`` and ``asset.json``.
 ``render``: open ``scene.blend`` (scripts off), give every material its
-enhanced Cycles shader, render the orbit's beauty (PNG), then the intrinsics
-pass (multilayer EXR per frame, see ``bl_render``), encode the MP4, write ``cameras.json``
-and ``render.json``.
+enhanced shader (``--graph``: the OSL one or the native node graph), render
+the orbit's beauty (PNG), then the intrinsics pass (multilayer EXR per frame,
+see ``bl_render``), encode the MP4, write ``cameras.json`` and ``render.json``.
 A bad asset ends in ``error.json`` and exit code 3; anything else that goes
 wrong is a crash the orchestrator records with its stderr.
 
@@ -88,14 +88,15 @@ def render(args: argparse.Namespace) -> None:
     scene = bpy.context.scene
     timings: dict[str, float] = {}
     start = time.monotonic()
-    built = {m["name"]: dataset_material.build(args.work / "materials" / m["folder"])
+    built = {m["name"]: dataset_material.build(args.work / "materials" / m["folder"], args.graph)
              for m in prepared["materials"]}
     slots = [s for o in scene.objects for s in getattr(o, "material_slots", [])
              if s.material is not None and s.material.name in built]
     originals = [s.material.name for s in slots]
     timings["materials"] = round(time.monotonic() - start, 3)
 
-    bl_render.configure_cycles(scene, args.resolution, args.samples, args.adaptive_threshold, args.threads)
+    bl_render.configure_cycles(scene, args.resolution, args.samples, args.adaptive_threshold, args.threads,
+                               args.graph)
     scene.world = bl_render.probe_world(args.probe)
     cam = bl_render.orbit(scene, args.frames, bl_render.start_azimuth(args.asset_id, args.seed))
     for slot, name in zip(slots, originals):
@@ -143,6 +144,7 @@ def parse(argv: list[str]) -> argparse.Namespace:
     r.add_argument("--adaptive-threshold", type=float, required=True)
     r.add_argument("--probe", type=Path, required=True)
     r.add_argument("--aov-samples", type=int, required=True)
+    r.add_argument("--graph", choices=("osl", "native"), default="osl")
     r.add_argument("--threads", type=int, default=1)
     for stage in (p, r):
         stage.add_argument("--work", type=Path, required=True)

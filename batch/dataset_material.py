@@ -1,6 +1,7 @@
 """Blender side: a prepared material as two Cycles materials, one per render pass.
 
-The beauty material is ``richmat_addon.blender.cycles_builder``'s OSL graph.
+The beauty material is one graph of ``richmat_addon.blender.cycles_builder``:
+the exact OSL one, or the native node graph any Cycles device renders.
 Cycles does not write Shader AOV outputs when it shades with OSL (checked on
 bpy 5.0.1: every AOV reads 0), so the intrinsic maps come from a second,
 cheap SVM pass whose material has only AOV outputs: the base colour (the
@@ -13,7 +14,7 @@ from pathlib import Path
 
 import bpy
 
-from richmat_addon.blender.cycles_builder import COLOR_SPACE_COLOR, COLOR_SPACE_DATA, build_material
+from richmat_addon.blender.cycles_builder import COLOR_SPACE_COLOR, COLOR_SPACE_DATA, Graph, build_material
 from richmat_addon.core import material_folder, neural_folder
 
 
@@ -31,12 +32,12 @@ def _texture(tree: bpy.types.NodeTree, path: str, colour: bool) -> bpy.types.Nod
     return node
 
 
-def build(folder: Path) -> tuple[bpy.types.Material, bpy.types.Material]:
+def build(folder: Path, graph: Graph = "osl") -> tuple[bpy.types.Material, bpy.types.Material]:
     """(beauty material, intrinsics material) of one prepared material folder."""
     baked = material_folder.read(folder)
     mat = baked.material()
     paths = {name: str(path) for name, path in baked.texture_paths.items()}
-    beauty = build_material(mat, paths, name=f"richmat_{mat.name}")
+    beauty = build_material(mat, paths, name=f"richmat_{mat.name}", graphs=(graph,))
     material = bpy.data.materials.new(f"richmat_aov_{mat.name}")
     tree = material.node_tree
     tree.nodes.clear()

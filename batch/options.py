@@ -42,6 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                 "default chosen by bench/render_speed.py, docs/batch.md)")
     add("--adaptive-threshold", type=float, default=0.01, help="Cycles adaptive sampling noise threshold "
                                                               "(default chosen with --samples)")
+    add("--graph", choices=("osl", "native"), default="osl",
+        help="the enhanced material the beauty pass renders: the exact OSL shader (Cycles on the CPU or OptiX) or "
+             "the native node graph (any Cycles device, docs/backends.md); intrinsics and latents are the same")
     add("--aov-samples", type=int, default=8, help="samples of the intrinsics pass (anti-aliasing of the EXR maps)")
     add("--probe", type=Path, default=DEFAULT_PROBE, help="HDR light probe (equirectangular)")
     add("--decoder", type=Path, default=DEFAULT_DECODER, help="trained decoder folder "
@@ -73,6 +76,7 @@ class Settings:
     samples: int
     adaptive_threshold: float
     aov_samples: int
+    graph: str
     probe_sha256: str
     decoder_sha256: str
     fit_steps: int
@@ -109,8 +113,8 @@ def validate(args: argparse.Namespace) -> None:
 
 def settings_of(args: argparse.Namespace) -> Settings:
     return Settings(PIPELINE_VERSION, args.frames, args.resolution, args.samples, args.adaptive_threshold,
-                    args.aov_samples, file_sha256(args.probe), file_sha256(args.decoder / "weights.safetensors"),
-                    args.fit_steps, args.max_texture, args.seed)
+                    args.aov_samples, args.graph, file_sha256(args.probe),
+                    file_sha256(args.decoder / "weights.safetensors"), args.fit_steps, args.max_texture, args.seed)
 
 
 def cpu_threads(workers: int) -> int:

@@ -108,7 +108,7 @@ def _stage_commands(asset: Asset, job: Job, work: Path) -> list[tuple[str, list[
     render = ["render", "--work", str(work), "--asset-id", asset.id, "--frames", str(s.frames),
               "--resolution", str(s.resolution), "--samples", str(s.samples),
               "--adaptive-threshold", str(s.adaptive_threshold), "--aov-samples", str(s.aov_samples),
-              "--probe", str(job.probe), "--seed", str(s.seed), "--threads", str(threads)]
+              "--graph", s.graph, "--probe", str(job.probe), "--seed", str(s.seed), "--threads", str(threads)]
     return [("prepare", job.commands.blender_job(prepare)), ("fit", job.commands.fit_job(fit)),
             ("render", job.commands.blender_job(render))]
 
