@@ -15,6 +15,7 @@ from richmat_addon.core.enhance import enhance
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
 from torch_models.brdf import lobes, tables
 
+from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
 from .test_osl import save_materials
 
 REPO = Path(__file__).resolve().parents[1]
@@ -199,3 +200,84 @@ def test_the_farm_takes_the_graph_and_hashes_it():
     assert native.graph == "native" and native.hash() != osl.hash()  # the beauty frames differ
     with pytest.raises(SystemExit):
         parser.parse_args(base + ["--graph", "svm"])
+
+
+ADDON_BALL = r'''
+bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16)
+bpy.ops.object.shade_smooth()
+obj = bpy.context.active_object
+material = bpy.data.materials.new("paint")
+obj.data.materials.append(material)
+principled = material.node_tree.nodes["Principled BSDF"]
+principled.inputs["Base Color"].default_value = (0.6, 0.3, 0.2, 1.0)
+principled.inputs["Roughness"].default_value = 0.4
+scene.richmat.enhancement_type = "3"  # dust and a coat: a sheen and a clearcoat to export
+builder = importlib.import_module(MODULE + ".blender.cycles_builder")
+'''
+
+TOGGLE = ADDON_BALL + r'''
+scene.render.engine = "CYCLES"  # the artist's choice: Cycles without OSL (as on a GPU without OptiX)
+before = (scene.render.engine, scene.cycles.device, scene.cycles.shading_system)
+res, _ = run_op("uplift_material")
+enhanced = obj.active_material
+after = (scene.render.engine, scene.cycles.device, scene.cycles.shading_system)
+out = {"uplift": list(res), "engine": [list(before), list(after)], "graphs": [builder.cycles_graph(enhanced)]}
+native = render(24, 8)
+res, err = run_op("toggle_cycles_graph")
+out["refused"] = [sorted(res), err]
+scene.cycles.shading_system = True
+out["toggled"] = list(run_op("toggle_cycles_graph")[0])
+out["graphs"].append(builder.cycles_graph(enhanced))
+osl = render(24, 8)
+scene.cycles.shading_system = False  # OSL off again: the handler must not leave a black material
+bpy.context.view_layer.update()
+out["graphs"].append(builder.cycles_graph(enhanced))
+out["means"] = [float(native.mean()), float(osl.mean())]
+print("RESULT " + json.dumps(out))
+'''
+
+
+def test_uplift_keeps_the_engine_and_the_toggle_never_leaves_black(blender_run, extension_zip: Path):  # noqa: F811
+    result = blender_run(script(TOGGLE, extension_zip))
+    assert result["uplift"] == ["FINISHED"]
+    assert result["engine"][0] == result["engine"][1] == ["CYCLES", "CPU", False]
+    # Cycles without OSL: native; OSL refused until it is on; then OSL; OSL off again: native.
+    assert result["graphs"] == ["native", "osl", "native"]
+    assert result["refused"][0] == ["CANCELLED"] and "Open Shading Language" in result["refused"][1]
+    assert result["toggled"] == ["FINISHED"]
+    native, osl = result["means"]
+    assert native > 0.01 and osl > 0.01 and abs(native - osl) < 0.1 * osl
+
+
+GLTF = ADDON_BALL + r'''
+assert run_op("uplift_material")[0] == {"FINISHED"}
+constants = {n.name[len("const_"):]: (list(n.outputs[0].default_value)[:3] if n.type == "RGB"
+                                       else n.outputs[0].default_value)
+             for n in obj.active_material.node_tree.nodes if n.name.startswith("const_")}
+path = str(Path(TMP) / "ball.gltf")
+assert bpy.ops.export_scene.gltf(filepath=path, export_format="GLTF_SEPARATE") == {"FINISHED"}
+document = json.loads(Path(path).read_text())
+bpy.ops.wm.read_homefile(use_empty=True)
+assert bpy.ops.import_scene.gltf(filepath=path) == {"FINISHED"}
+imported = next(o for o in bpy.data.objects if o.type == "MESH").active_material
+p = next(n for n in imported.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+values = {s.name: (list(s.default_value)[:3] if s.type == "RGBA" else s.default_value) for s in p.inputs
+          if s.type in ("RGBA", "VALUE")}
+print("RESULT " + json.dumps({"constants": constants, "values": values,
+                              "extensions": document.get("extensionsUsed", [])}))
+'''
+
+
+def test_gltf_export_writes_the_native_materials_principled_values(blender_run, extension_zip: Path,  # noqa: F811
+                                                                    tmp_path: Path):
+    result = blender_run(script(f"TMP = {str(tmp_path)!r}\n" + GLTF, extension_zip))
+    c, v = result["constants"], result["values"]
+    assert {"KHR_materials_clearcoat", "KHR_materials_sheen", "KHR_materials_specular"} <= set(result["extensions"])
+    expected = {"Base Color": c["base_color"], "Metallic": 0.0, "Roughness": math.sqrt(c["alpha_core"]),
+                "Coat Weight": c["coat_weight"], "Coat Roughness": math.sqrt(c["coat_alpha"]),
+                "Sheen Weight": 1.0, "Sheen Tint": [c["dust_weight"]] * 3, "Sheen Roughness": c["dust_roughness"]}
+    for name, want in expected.items():
+        assert v[name] == pytest.approx(want, abs=2e-3), name
+    # The dielectric's F0 (Blender: F0(IOR) x 2 x level x tint) is the material's, whatever the IOR carries.
+    f0 = albedo_fits.f0(v["IOR"]) * 2 * v["Specular IOR Level"] * np.mean(v["Specular Tint"])
+    assert f0 == pytest.approx(albedo_fits.f0(c["diel_ior"]), rel=1e-3)

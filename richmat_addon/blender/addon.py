@@ -21,7 +21,7 @@ def _keep_cycles_renderable(scene: bpy.types.Scene, *_: object) -> None:
     _checked[:] = [state]
     switched = uplift.keep_cycles_renderable(scene)
     if switched:
-        print(f"richmat: Cycles cannot run OSL here; {', '.join(switched)} now render the native nodes in Cycles")
+        print(f"richmat: Cycles cannot run OSL here; it now renders the native nodes of {', '.join(switched)}")
 
 
 @persistent

@@ -31,11 +31,12 @@ import tempfile
 from collections.abc import Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator, Literal, Union
+from typing import Callable, Iterator, Literal, Union
 
 import bpy
 
 from ..core import graph, osl, schema
+from ..core.albedo_fits import f0
 from ..core.maps import EnhancedMaterial, ParamMap
 from . import native_builder
 from .osl_env import prefer_blender_bundled_modules
@@ -56,15 +57,26 @@ COLOR_SPACE_DATA = "Non-Color"
 _BASE_GROUP = "base"
 # Column and row pitch of the parameter nodes (left of the shaders).
 _PARAMETER_SPACING = (300.0, 280.0)
+EXPORT_IOR = 1.5
+
+
+def _specular_level(ior: float) -> float:
+    """Principled's Specular IOR Level that gives, at ``EXPORT_IOR``, the F0 of ``ior``: Blender scales
+    F0 by 2 x level. glTF's exporter writes KHR_materials_ior only beside a non-default specular, so the
+    F0 travels in KHR_materials_specular instead."""
+    return f0(ior) / (2.0 * f0(EXPORT_IOR))
+
+
 # The export Principled BSDF: socket, the parameters that feed it (the first one the graph reads, else
-# the first one's value), and whether it takes sqrt(alpha) (Blender squares the roughness). glTF's sheen
-# has no weight, so the dust weight is the sheen colour (KHR_materials_sheen's sheenColorFactor).
-_EXPORT_SOCKETS: tuple[tuple[str, tuple[str, ...], bool], ...] = (
-    ("Base Color", ("base_color", "spec_color"), False), ("Metallic", ("metalness",), False),
-    ("Roughness", ("alpha_core",), True), ("IOR", ("diel_ior",), False),
-    ("Coat Weight", ("coat_weight",), False), ("Coat Roughness", ("coat_alpha",), True),
-    ("Coat IOR", ("coat_ior",), False), ("Sheen Tint", ("dust_weight",), False),
-    ("Sheen Roughness", ("dust_roughness",), False))
+# the first one's value) and how a value becomes the socket's (a function of the value, given the texture's
+# mean when it is a texture). Blender squares the roughnesses; glTF's sheen has no weight, so the dust
+# weight is the sheen colour (KHR_materials_sheen's sheenColorFactor).
+_EXPORT_SOCKETS: tuple[tuple[str, tuple[str, ...], Callable[[float], float] | None], ...] = (
+    ("Base Color", ("base_color", "spec_color"), None), ("Metallic", ("metalness",), None),
+    ("Roughness", ("alpha_core",), math.sqrt), ("Specular IOR Level", ("diel_ior",), _specular_level),
+    ("Coat Weight", ("coat_weight",), None), ("Coat Roughness", ("coat_alpha",), math.sqrt),
+    ("Coat IOR", ("coat_ior",), None), ("Sheen Tint", ("dust_weight",), None),
+    ("Sheen Roughness", ("dust_roughness",), None))
 
 def enable_osl(scene: bpy.types.Scene) -> None:
     """Cycles on the CPU with OSL, for renders that are not an artist's scene (benches, tests, the farm)."""
@@ -193,32 +205,28 @@ def _script_node(tree: bpy.types.NodeTree, name: str, pruned: graph.Node) -> bpy
 
 def _export_node(tree: bpy.types.NodeTree, mat: EnhancedMaterial,
                  sources: dict[str, bpy.types.NodeSocket]) -> bpy.types.Node:
-    """The Principled BSDF exporters read: base, metal, core roughness, coat, dust as sheen, IOR.
+    """The Principled BSDF exporters read: base, metal, core roughness, F0, coat, dust as sheen.
 
-    An exporter reads a constant only from the socket itself or a Value/RGB node
-    feeding it, so a constant roughness is written as sqrt(alpha) in the socket.
+    Constants are written into its sockets, where exporters read them; textures
+    are linked, except where a value must be converted (an exporter reads no math
+    node), which takes the texture's mean. Bake rebuilds it, so an edit in the
+    panel reaches it there.
     """
     node = tree.nodes.new("ShaderNodeBsdfPrincipled")
     node.name, node.label = EXPORT_NODE, "richmat for exporters (glTF, USD)"
     node.location = (0.0, -1100.0)
-    for socket, params, squared in _EXPORT_SOCKETS:
-        name = next((p for p in params if p in sources), None)
-        constant = name is None or sources[name].node.name.startswith("const_")
-        if squared and not constant:
-            sqrt = tree.nodes.new("ShaderNodeMath")
-            sqrt.operation = "SQRT"
-            sqrt.location = (-200.0, node.location.y)
-            tree.links.new(sources[name], sqrt.inputs[0])
-            tree.links.new(sqrt.outputs[0], node.inputs[socket])
-        elif squared or name is None:
-            value = [float(x) for x in _map_of(mat, name or params[0]).mean()]
-            value = [math.sqrt(v) for v in value] if squared else value
-            if node.inputs[socket].type == "RGBA":  # a colour, or a grey from one value
-                node.inputs[socket].default_value = (*(value * 3)[:3], 1.0)
-            else:
-                node.inputs[socket].default_value = value[0]
-        else:
+    node.inputs["IOR"].default_value = EXPORT_IOR
+    for socket, params, convert in _EXPORT_SOCKETS:
+        name = next((p for p in params if p in sources), params[0])
+        value = _map_of(mat, name)
+        if not value.is_constant and convert is None:
             tree.links.new(sources[name], node.inputs[socket])
+            continue
+        v = [convert(float(x)) if convert else float(x) for x in value.mean()]
+        if node.inputs[socket].type == "RGBA":  # a colour, or a grey from one value
+            node.inputs[socket].default_value = (*(v * 3)[:3], 1.0)
+        else:
+            node.inputs[socket].default_value = v[0]
     node.inputs["Sheen Weight"].default_value = 1.0 if "dust_weight" in sources else 0.0
     return node
 
