@@ -115,13 +115,12 @@ def test_the_fit_nodes_compute_the_core_fits(blender_run):
 
 
 PER_TYPE = """
-import json, time
+import json
 import numpy as np
 import bpy
 from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
 prefer_blender_bundled_modules()
-from richmat_addon.blender import cycles_builder, native_builder, preview_scene
-from richmat_addon.core import graph
+from richmat_addon.blender import cycles_builder, preview_scene
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
 from richmat_addon.core.preview import PreviewScene
 
@@ -139,26 +138,26 @@ def trees(material):
     return found
 
 out = {}
+bpy.ops.wm.read_factory_settings(use_empty=True)
+scene = bpy.context.scene
+cycles_builder.enable_osl(scene)
+preview_scene.setup(scene, PreviewScene(resolution=SIZE), PROBE, None, SAMPLES)
+scene.render.threads_mode, scene.render.threads = "FIXED", 1
+ball = bpy.data.node_groups[preview_scene.BALL].nodes["Set Material"].inputs["Material"]
 for name in NAMES:
-    mat = load_material(NPZ, name)
     row = out[name] = {}
+    material = cycles_builder.build_material(load_material(NPZ, name), {}, name)
+    ball.default_value = material
+    native = material.node_tree.nodes[cycles_builder.NATIVE_NODE].node_tree
+    row["lobe_nodes"] = sorted(n.label for n in native.nodes if n.type == "GROUP" and not n.label.startswith("layer"))
+    row["groups"] = sorted({t.name for t in trees(material)[1:]})
+    row["links_valid"] = all(link.is_valid for t in trees(material) for link in t.links)
+    row["outputs"] = {n.name: [n.target, n.inputs["Surface"].links[0].from_node.name, n.is_active_output]
+                      for n in material.node_tree.nodes if n.type == "OUTPUT_MATERIAL"}
     for which in ("osl", "native"):
-        bpy.ops.wm.read_factory_settings(use_empty=True)
-        scene = bpy.context.scene
-        cycles_builder.enable_osl(scene)
         scene.cycles.shading_system = which == "osl"
-        material = cycles_builder.build_material(mat, {}, name, cycles=which)
-        native = material.node_tree.nodes[cycles_builder.NATIVE_NODE].node_tree
-        row["lobe_nodes"] = sorted(n.label for n in native.nodes if n.type == "GROUP" and not n.label.startswith("layer"))
-        row["groups"] = sorted({t.name for t in trees(material)[1:]})
-        row["links_valid"] = all(link.is_valid for t in trees(material) for link in t.links)
-        row["outputs"] = {n.name: [n.target, n.inputs["Surface"].links[0].from_node.name, n.is_active_output]
-                          for n in material.node_tree.nodes if n.type == "OUTPUT_MATERIAL"}
-        preview_scene.setup(scene, PreviewScene(resolution=SIZE), PROBE, material, SAMPLES)
-        scene.render.threads_mode, scene.render.threads = "FIXED", 1
-        start = time.perf_counter()
+        cycles_builder.use_in_cycles(material, which)
         preview_scene.render_exr(scene, Path(f"{name}_{which}.exr").resolve())
-        row[which + "_seconds"] = time.perf_counter() - start
 print("RESULT " + json.dumps(out))
 """
 
