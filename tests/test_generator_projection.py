@@ -57,9 +57,37 @@ def test_unseen_texels_are_inpainted_or_get_the_fallback(scene):
     assert bool(((filled >= lo - 1e-5) & (filled <= hi + 1e-5)).all())  # means of known values only
 
 
-def test_erosion_drops_seen_texels_next_to_holes():
-    charts = torch.ones(12, 12, dtype=torch.bool)
-    known = torch.zeros(12, 12, dtype=torch.bool)
-    known[:, :8] = True
-    eroded = known & ~projection._grow(charts & ~known, 4)
-    assert bool(eroded[:, :4].all()) and not bool(eroded[:, 4:].any())
+def _plane_view(depths: torch.Tensor) -> tuple[views.IntrinsicViews, views.Cameras]:
+    """One camera at z = 5 looking down -Z at surfaces facing it, ``depths`` (H, W) below the camera
+    per pixel (inf: background), every pixel's UV at the centre of texel (0, 0) of a 1 x 1 texture."""
+    h, w = depths.shape
+    cams = views.Cameras(w, float(w), torch.tensor([[[1.0, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 5], [0, 0, 0, 1]]],
+                                                  dtype=torch.float64))
+    covered = depths.isfinite()
+    d = torch.where(covered, depths, 0.0)
+    ys, xs = torch.meshgrid(torch.arange(h) + 0.5 - h / 2, torch.arange(w) + 0.5 - w / 2, indexing="ij")
+    positions = torch.stack([xs * d / w, -ys * d / w, 5 - d], -1)[None]
+    normals = torch.tensor([0.0, 0.0, 1.0]).expand(1, h, w, 3)
+    return views.IntrinsicViews(normals, positions, torch.zeros(1, h, w, 3), covered.float()[None],
+                                torch.full((1, h, w, 2), 0.5), None), cams
+
+
+def test_rim_trust_marks_silhouettes_and_occlusion_boundaries():
+    depths = torch.full((8, 12), 5.0)
+    depths[:, 6:] = 3.0  # a nearer surface on the right: an occlusion boundary between columns 5 and 6
+    depths[:, 11] = float("inf")  # background in the last column: a silhouette
+    view, cams = _plane_view(depths)
+    trust = projection.rim_trust(view, cams, width=1)[0]
+    near = torch.zeros(12, dtype=torch.bool)
+    near[[4, 5, 6, 7, 10, 11]] = True
+    assert bool((trust[:, near] == projection.RIM_TRUST).all()) and bool((trust[:, ~near] == 1).all())
+
+
+def test_a_texel_seen_only_near_a_rim_is_seen_and_prefers_a_clean_view():
+    view, cams = _plane_view(torch.full((1, 2), 5.0))
+    values = torch.tensor([[[[1.0], [3.0]]]])  # two pixels on the one texel
+    charts = torch.ones(1, 1, dtype=torch.bool)
+    both_rim = projection.project(values, view, cams, charts, torch.zeros(1), trust=torch.full((1, 1, 2), 0.01))
+    assert bool(both_rim.seen.all()) and float(both_rim.texture[0, 0, 0]) == pytest.approx(2.0)
+    one_clean = projection.project(values, view, cams, charts, torch.zeros(1), trust=torch.tensor([[[0.01, 1.0]]]))
+    assert bool(one_clean.seen.all()) and float(one_clean.texture[0, 0, 0]) == pytest.approx(3.0, abs=0.03)

@@ -18,6 +18,7 @@ supersampled ones, tests/test_generator_views.py). Coverage is then fractional.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,34 +50,56 @@ class Cameras:
         return self.camera_to_world[:, :3, 3]
 
 
-def orbit_cameras(frames: int, resolution: int, azimuth0: float = 0.0) -> Cameras:
-    """One closed turn around the origin, elevation 25 +- 10 deg, the unit cube's bounding sphere framed."""
-    half_fov = math.atan(SENSOR_MM / 2 / LENS_MM)
-    distance = FRAMING_MARGIN * (math.sqrt(3) / 2) / math.sin(half_fov)
+def direction(azimuth: float, elevation: float) -> np.ndarray:
+    """The unit vector from the target towards a camera at these angles (radians; Z up)."""
+    return np.array([math.cos(elevation) * math.cos(azimuth), math.cos(elevation) * math.sin(azimuth),
+                     math.sin(elevation)])
+
+
+def look_at(directions: np.ndarray, resolution: int, radius: float = math.sqrt(3) / 2,
+            centre: np.ndarray | None = None) -> Cameras:
+    """Cameras looking at ``centre`` from the unit ``directions`` (N, 3), each far enough to frame
+    a sphere of ``radius`` (default: the unit cube's bounding sphere, as batch frames)."""
+    distance = FRAMING_MARGIN * radius / math.sin(math.atan(SENSOR_MM / 2 / LENS_MM))
+    centre = np.zeros(3) if centre is None else centre
     mats = []
-    for i in range(frames):
-        t = i / frames
-        az = azimuth0 + 2 * math.pi * t
-        el = math.radians(ELEVATION_DEG + ELEVATION_SWING_DEG * math.sin(2 * math.pi * t))
-        eye = distance * np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
-        back = eye / np.linalg.norm(eye)  # camera +Z points away from the target
+    for d in directions:
+        back = d / np.linalg.norm(d)  # camera +Z points away from the target
         right = np.cross([0.0, 0.0, 1.0], back)
+        if np.linalg.norm(right) < 1e-6:  # straight down or up: any horizontal right will do
+            right = np.array([0.0, -1.0, 0.0]) * np.sign(back[2])
         right /= np.linalg.norm(right)
-        up = np.cross(back, right)
         m = np.eye(4)
-        m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = right, up, back, eye
+        m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = right, np.cross(back, right), back, centre + distance * back
         mats.append(m)
     return Cameras(resolution, LENS_MM / SENSOR_MM * resolution, torch.tensor(np.stack(mats)))
 
 
+def orbit_cameras(frames: int, resolution: int, azimuth0: float = 0.0) -> Cameras:
+    """One closed turn around the origin, elevation 25 +- 10 deg, the unit cube's bounding sphere framed."""
+    t = np.arange(frames) / frames
+    return look_at(np.stack([direction(azimuth0 + 2 * math.pi * ti,
+                                       math.radians(ELEVATION_DEG + ELEVATION_SWING_DEG * math.sin(2 * math.pi * ti)))
+                             for ti in t]), resolution)
+
+
 @dataclass
 class Mesh:
-    """A triangle mesh with per-vertex normals and UVs (seams already split)."""
+    """A triangle mesh with per-vertex normals and UVs (seams already split).
+
+    Each face belongs to a material (``face_material``, None: all to material 0) and its
+    UVs address that material's textures: materials do not share a texture space."""
 
     positions: np.ndarray  # (N, 3) float32, world (normalised) space
     normals: np.ndarray  # (N, 3) float32
     uvs: np.ndarray  # (N, 2) float32, glTF convention
     faces: np.ndarray  # (T, 3) int64
+    face_material: np.ndarray | None = None  # (T,) int64
+
+    @property
+    def materials(self) -> np.ndarray:
+        """(T,) the material index of every face."""
+        return np.zeros(len(self.faces), np.int64) if self.face_material is None else self.face_material
 
 
 @dataclass
@@ -96,6 +119,11 @@ class Fragments:
         tri = self.triangle.clamp(min=0)
         value = (corners[tri] * self.bary[..., None]).sum(-2)
         return value * (self.triangle >= 0)[..., None]
+
+    def material(self, face_material: np.ndarray) -> Tensor:
+        """(V, H, W) the material index of what each pixel sees, -1 on the background."""
+        per_face = torch.from_numpy(np.asarray(face_material, np.int64))
+        return torch.where(self.triangle >= 0, per_face[self.triangle.clamp(min=0)], -1)
 
 
 def rasterize(mesh: Mesh, cameras: Cameras) -> Fragments:
@@ -174,10 +202,29 @@ def sample_texture(texture: np.ndarray, uv: Tensor) -> Tensor:
             + fy * ((1 - fx) * at(y0 + 1, x0) + fx * at(y0 + 1, x0 + 1)))
 
 
+Textures = np.ndarray | Sequence[np.ndarray]  # one (H, W, C) texture per material, or one for a one-material mesh
+
+
+def per_material(textures: Textures) -> list[np.ndarray]:
+    """Textures as a list with one entry per material."""
+    return [textures] if isinstance(textures, np.ndarray) else list(textures)
+
+
+def sample_materials(textures: Textures, uv: Tensor, material: Tensor) -> Tensor:
+    """Each pixel's lookup in its own material's texture (``sample_texture``); 0 where ``material`` is -1."""
+    textures = per_material(textures)
+    out = torch.zeros((*uv.shape[:-1], textures[0].shape[-1]))
+    for index, texture in enumerate(textures):
+        where = material == index
+        out[where] = sample_texture(texture, uv[where])
+    return out
+
+
 @dataclass
 class IntrinsicViews:
     """Per-view maps (V, H, W, C): normal 3, position 3, base colour 3, coverage 1, uv 2, latent 6 (if known),
-    roughness and metalness 2 (if known)."""
+    roughness and metalness 2 (if known); ``material`` (V, H, W): the material index of each pixel
+    (of its first subsample when supersampled), -1 on the background."""
 
     normals: Tensor
     positions: Tensor
@@ -186,6 +233,7 @@ class IntrinsicViews:
     uvs: Tensor
     latents: Tensor | None
     roughness_metalness: Tensor | None = None
+    material: Tensor | None = None
 
     def conditions(self, prior: Tensor) -> Tensor:
         """The generator's condition channels (V, CONDITION_CHANNELS, H, W), in ``CONDITION_LAYOUT`` order;
@@ -209,24 +257,25 @@ PBR_CHANNELS = slice(9, 12)  # roughness, metalness, pbr_known: zeroed together 
 PRIOR_CHANNELS = slice(12, 18)  # the uplift prior's latents; swapped for the unknown-PBR prior with the maps
 
 
-def render_intrinsics(mesh: Mesh, cameras: Cameras, base_color: np.ndarray,
-                      latents: np.ndarray | None = None, supersample: int = 1,
-                      roughness_metalness: np.ndarray | None = None) -> IntrinsicViews:
+def render_intrinsics(mesh: Mesh, cameras: Cameras, base_color: Textures,
+                      latents: Textures | None = None, supersample: int = 1,
+                      roughness_metalness: Textures | None = None) -> IntrinsicViews:
     """Normals, positions, base colour (and latents, roughness and metalness) as seen by each camera;
-    0 on the background.
+    0 on the background. Each texture argument holds one texture per material of the mesh.
 
     With supersampling every map is the mean over the covered subsamples of a pixel
     (not premultiplied by coverage) and coverage is the covered fraction.
     """
     fine = Cameras(cameras.resolution * supersample, cameras.focal_px * supersample, cameras.camera_to_world)
     frags = rasterize(mesh, fine)
+    material = frags.material(mesh.materials)
     cover = frags.coverage[..., None]
     n = frags.interpolate(mesh.normals, mesh.faces)
     uv = frags.interpolate(mesh.uvs, mesh.faces)
     maps = [n / n.norm(dim=-1, keepdim=True).clamp(min=1e-12), frags.interpolate(mesh.positions, mesh.faces),
-            sample_texture(base_color, uv) * cover, uv]
+            sample_materials(base_color, uv, material), uv]
     optional = [t for t in (latents, roughness_metalness) if t is not None]
-    maps += [sample_texture(t, uv) * cover for t in optional]
+    maps += [sample_materials(t, uv, material) for t in optional]
     if supersample > 1:
         pooled_cover = torch.nn.functional.avg_pool2d(cover.permute(0, 3, 1, 2), supersample)
         maps = [(torch.nn.functional.avg_pool2d(m.permute(0, 3, 1, 2), supersample)
@@ -236,4 +285,5 @@ def render_intrinsics(mesh: Mesh, cameras: Cameras, base_color: np.ndarray,
     rest = iter(maps[4:])
     return IntrinsicViews(maps[0], maps[1], maps[2], cover[..., 0], maps[3],
                           next(rest) if latents is not None else None,
-                          next(rest) if roughness_metalness is not None else None)
+                          next(rest) if roughness_metalness is not None else None,
+                          material[:, ::supersample, ::supersample])
