@@ -1,17 +1,17 @@
 """Where the generator fails (issue 6, item 7): UV islands, thin parts, unseen texels, unknown words.
 
 The first three are failures of the projection into texture space, so they are
-measured by what the projection keeps: the shares of chart texels seen by a view
-(after the rim erosion), inpainted from neighbours, or given the diffuse fallback,
-and the round-trip error: the latent views re-rendered from the projected
-texture against the views the model sampled (RMS over covered pixels, in latent
-units; 0 when the texture holds exactly what the views said).
+measured by what the projection keeps: the shares of chart texels seen by a
+view, inpainted from neighbours, or given the diffuse fallback, and the round-trip
+error: the latent views re-rendered from the projected texture against the views
+the model sampled (RMS over covered pixels, in latent units; 0 when the texture
+holds exactly what the views said).
 - many UV islands: held-out objects re-unwrapped by xatlas with a cap on the
   chart area, so the same surface falls into ever more islands;
 - thin parts: a torus whose tube gets thinner (the object is normalised into the
   unit cube, so the tube shrinks against the views' pixels);
 - views that miss texels: fewer views, on held-out objects and on a thick tube
-  (annulus) whose inner wall the orbit hardly sees;
+  (annulus) whose inner wall few views see;
 - prompts outside the vocabulary: the type keywords found, the warning, and the
   cosine of the prompt's MiniLM embedding to the nearest training caption.
 Base colour is the object's mean (a constant), so every variant gets the same.
@@ -32,9 +32,9 @@ from richmat_addon.core.prompt import prompt_type
 from torch_models.generator import DEFAULT_STEPS, text
 from torch_models.generator import generate as gen
 from torch_models.generator.dit import LatentGenerator
-from torch_models.generator.mesh_input import MeshInput
+from torch_models.generator.mesh_input import MaterialInput, MeshInput
 from torch_models.generator.train import GeneratorTrainConfig
-from torch_models.generator.views import Mesh, orbit_cameras, render_intrinsics
+from torch_models.generator.views import Mesh, render_intrinsics
 from torch_models.neural import weights
 
 ISLAND_CAPS = (None, 1 / 16, 1 / 64, 1 / 256)  # max chart area as a share of the surface (None: xatlas default)
@@ -92,11 +92,11 @@ def primitive(kind: str, size: float) -> tuple[np.ndarray, np.ndarray, np.ndarra
 def measure(mesh: Mesh, base: np.ndarray, prompt: str, model: LatentGenerator, cfg: GeneratorTrainConfig,
             steps: int, views: int) -> dict:
     """Projection shares, round-trip error and warnings of one generation."""
-    inp = MeshInput(mesh, base.reshape(1, 1, 3).astype(np.float32), True)
+    colour = base.reshape(1, 1, 3).astype(np.float32)
+    inp = MeshInput(mesh, [MaterialInput("object", colour)])
     result = gen.generate(inp, prompt, model, cfg, 0, steps, views, texture_size=cfg.corpus.texture_size,
                           guard_energy=False)  # the guard scales f_neu; it changes no latent measured here
-    cams = orbit_cameras(views, cfg.model.size)
-    again = render_intrinsics(mesh, cams, inp.base_color, result.latents, cfg.corpus.supersample)
+    again = render_intrinsics(mesh, result.cameras, colour, result.latents, cfg.corpus.supersample)
     covered = (again.coverage > 0.5)[..., None]
     diff = (again.latents - result.views.permute(0, 2, 3, 1)) * covered
     rms = float(torch.sqrt((diff ** 2).sum() / (covered.sum() * 6).clamp(min=1)))

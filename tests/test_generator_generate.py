@@ -14,6 +14,7 @@ from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.prompt import prompt_type
 from torch_models.cli import main
+from torch_models.cli_generate import PREVIEW_FRAMES, PREVIEW_SIZE
 from tests.test_generator_text import text_encoder
 from tests.test_generator_train import TINY
 
@@ -52,14 +53,16 @@ def test_generate_writes_latent_textures_and_a_preview(checkpoint, tmp_path):
     assert a.shape == b.shape == (32, 32, 3)
     assert np.isfinite(a).all() and np.abs(np.concatenate([a, b], -1)).max() <= 1.0 + 1e-3
     record = neural_folder.read(out).record
-    assert record["type"] == 1 and record["views"] == 3
+    assert record["type"] == 1 and record["views"] == 3 and len(record["cameras"]) == 3
+    assert record["coverage"] == record["projection"]  # one material: the mesh's share is its own
     guarded = record["energy_scale"] == "energy_scale.exr"  # the guard ran; its map is written when it darkened
     assert guarded == (record["texels_darkened_by_guard"] > 0) == (out / "energy_scale.exr").exists()
     share = record["projection"]
     assert share["seen"] > 0 and share["seen"] + share["inpainted"] + share["fallback"] == pytest.approx(1.0)
     with Image.open(out / "preview.png") as im:
-        assert im.size == (4 * 128, 128)
-        assert np.asarray(im).max() > 0  # the object is lit
+        assert im.size == (PREVIEW_FRAMES * PREVIEW_SIZE, PREVIEW_SIZE) and im.size[0] >= 512
+        lit = np.asarray(im)[..., :3]
+        assert lit.max() > 0 and (lit.max(-1) > 0).mean() > 0.1  # the object is lit and fills the frame
     again = tmp_path / "again"
     assert main(["generate", *args[:4], str(again), *args[5:], "--no-preview", "--no-energy-guard"]) == 0
     assert np.array_equal(read_exr(again / "latent_0.exr"), a)  # deterministic per seed
@@ -92,11 +95,12 @@ def test_zero_steps_views_or_samples_is_bad_input_and_writes_nothing(flag, tmp_p
 def test_a_mostly_inpainted_texture_is_warned_about(checkpoint):
     from torch_models.generator import generate as gen
     from torch_models.generator.mesh_input import load_mesh
+    from torch_models.generator.views import orbit_cameras
 
     model, cfg = gen.load_generator(checkpoint)
     inp = load_mesh(GLB)
-    one = gen.generate(inp, "silver metal with light dust", model, cfg, steps=1, views=1, texture_size=32,
-                       guard_energy=False)
+    one = gen.generate(inp, "silver metal with light dust", model, cfg, steps=1, texture_size=32, guard_energy=False,
+                       cameras=orbit_cameras(1, cfg.model.size))
     assert one.views.shape == (1, 6, cfg.model.size, cfg.model.size)  # what was projected, for round-trip checks
     assert one.projection.stats(one.charts)["seen"] < gen.SEEN_WARNING
     assert any("inpainted from their neighbours" in w for w in one.warnings)
@@ -161,16 +165,16 @@ def test_roughness_and_metalness_come_from_the_file_or_the_bake(tmp_path):
     glb = tmp_path / "box.glb"
     box.export(glb)
     inp = load_mesh(glb)
-    assert np.allclose(inp.roughness_metalness.reshape(-1, 2), [0.3, 0.9], atol=1e-3) and inp.metallic
+    assert np.allclose(inp.materials[0].roughness_metalness.reshape(-1, 2), [0.3, 0.9], atol=1e-3) and inp.metallic
     obj = tmp_path / "box.obj"
     trimesh.creation.box().export(obj)
     bare = load_mesh(obj)
-    assert bare.roughness_metalness is None and not bare.metallic
+    assert bare.materials[0].roughness_metalness is None and not bare.metallic and not bare.pbr_known
     assert any("roughness" in n for n in bare.notes)
 
     baked = bake_constants(tmp_path / "baked", (0.5, 0.5, 0.5), metalness=0.0, roughness=0.4, p=2.5)
     use_baked_material(bare, baked)
-    assert np.allclose(bare.roughness_metalness.reshape(-1, 2), [0.4, 0.0], atol=1e-5)
+    assert np.allclose(bare.materials[0].roughness_metalness.reshape(-1, 2), [0.4, 0.0], atol=1e-5)
 
     rough = np.arange(16, dtype=np.float32).reshape(4, 4, 1)
     both = stack_maps(rough, np.full((2, 2, 1), 0.5, np.float32))
@@ -233,14 +237,15 @@ def test_a_zero_residual_gives_back_the_uplift_prior(checkpoint, monkeypatch):
     assert np.allclose(out.latents[out.projection.fallback.numpy()], fallback, atol=2e-3)
 
 
-def test_the_default_texture_follows_the_base_colour_up_to_the_guards_budget():
+def test_a_materials_latent_texture_follows_its_maps_up_to_the_guards_budget():
     from torch_models.generator import DEFAULT_TEXTURE_SIZE
-    from torch_models.generator.generate import default_texture_size
-    from torch_models.generator.mesh_input import MeshInput
+    from torch_models.generator.mesh_input import MaterialInput
 
-    def size(base_shape: tuple[int, int]) -> int:
-        return default_texture_size(MeshInput(None, np.zeros((*base_shape, 3), np.float32), True))
+    def shape(base: tuple[int, int], rm: tuple[int, int] = (1, 1)) -> tuple[int, int]:
+        material = MaterialInput("m", np.zeros((*base, 3), np.float32), np.zeros((*rm, 2), np.float32))
+        return material.texture_shape(DEFAULT_TEXTURE_SIZE)
 
-    assert size((16, 16)) == 16 and size((16, 32)) == 32  # bake at the input's resolution
-    assert size((1, 1)) == DEFAULT_TEXTURE_SIZE and size((2048, 2048)) == DEFAULT_TEXTURE_SIZE
-    assert size((4, 4)) == 8
+    assert shape((16, 16)) == (16, 16) and shape((16, 32)) == (16, 32)  # bake at the input's resolution
+    assert shape((1, 1), (32, 32)) == (32, 32)  # a roughness texture counts as much as a colour one
+    assert shape((1, 1)) == (DEFAULT_TEXTURE_SIZE,) * 2 and shape((2048, 1024)) == (DEFAULT_TEXTURE_SIZE, 32)
+    assert shape((4, 4)) == (8, 8)

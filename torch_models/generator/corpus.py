@@ -42,7 +42,7 @@ from richmat_addon.core.maps import EnhancedMaterial, ParamMap
 from ..dataset import BatchDataset
 from . import procedural, text
 from .encoding import latent_texture
-from .mesh_input import MeshInput
+from .mesh_input import MaterialInput
 from .prior import prior_latents
 from .views import CONDITION_CHANNELS, Cameras, IntrinsicViews, orbit_cameras, render_intrinsics
 
@@ -110,7 +110,7 @@ def from_procedural(index: int, cameras: Cameras, texture_size: int = 64, seed: 
     material = enhance(asset.pbr, type_, enhancement_seed(seed, index), ParamMap(asset.world_normals),
                        ParamMap(asset.world_positions))
     latents = latent_texture(material, (texture_size, texture_size), fit_steps)
-    inp = MeshInput.from_pbr(asset.mesh, asset.pbr)
+    inp = MaterialInput.from_pbr(asset.pbr)
     rm = inp.roughness_metalness
     priors = [prior_latents(inp.base_color, known, type_, asset.world_normals, asset.world_positions)
               for known in (rm, None)]

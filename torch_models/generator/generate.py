@@ -1,8 +1,9 @@
-"""Text + mesh -> neural material: uplift prior, condition views, diffusion sampling of the residual,
-projection to texture space."""
+"""Text + mesh -> neural material: per material an uplift prior; views chosen to see the surface;
+condition views, diffusion sampling of the residual, projection into each material's texture space."""
 from __future__ import annotations
 
 import json
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -13,20 +14,23 @@ import torch
 from safetensors.torch import load_file
 from torch import Tensor
 
+from richmat_addon.core.enhancement_types import METAL_REMAP
 from richmat_addon.core.maps import PbrInputs, ParamMap
 from richmat_addon.core.prompt import prompt_type
 from richmat_addon.core.uv_raster import rasterize as uv_rasterize
 from . import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, text
+from .coverage import TextureSpace, choose_cameras
 from .dit import Conditions, LatentGenerator
 from .mesh_input import MeshInput
 from .prior import prior_latents
-from .projection import Projection, project
+from .projection import Projection, project, rim_trust
 from .train import GeneratorTrainConfig
-from .views import IntrinsicViews, orbit_cameras, render_intrinsics
+from .views import (ELEVATION_DEG, Cameras, IntrinsicViews, Mesh, Textures, direction, look_at, per_material,
+                    render_intrinsics)
 
 SHIPPED = Path(__file__).resolve().parent / "weights"
 SEEN_WARNING = 0.5  # below this share of directly seen texels the result is mostly inpainted: say so
-PROJECTION_UPSAMPLE = 4  # generated views are upsampled this much before splatting, so texels get dense samples
+PROJECTION_UPSAMPLE = 8  # generated views are upsampled this much before splatting, so texels get dense samples
 
 
 def load_generator(folder: Path = SHIPPED) -> tuple[LatentGenerator, GeneratorTrainConfig]:
@@ -65,16 +69,62 @@ def diffuse_fallback_latent() -> Tensor:
 
 
 @dataclass
-class Generation:
+class MaterialLatents:
+    """One material's generated latent texture and how it was made."""
+
+    name: str
     latents: np.ndarray  # (H, W, 6) texture
     prior: np.ndarray  # (H, W, 6) the uplift prior the residual was added to (prior.py)
-    views: Tensor  # (V, 6, h, w) the sampled latent views (prior + residual) the texture was made from
-    projection: Projection
-    charts: Tensor
-    type: int
     energy_scale: np.ndarray  # (H, W) f_neu scale per texel from the energy guard (1 where none is needed)
+    projection: Projection
+    charts: Tensor  # (H, W) bool: the texels its UVs cover
+
+    def stats(self) -> dict[str, float]:
+        """Shares of its chart texels seen by a view, inpainted, given the fallback."""
+        return self.projection.stats(self.charts)
+
+
+@dataclass
+class Generation:
+    materials: list[MaterialLatents]  # as ``MeshInput.materials``
+    views: Tensor  # (V, 6, h, w) the sampled latent views (prior + residual) the textures were made from
+    cameras: Cameras  # the views' cameras (``coverage.choose_cameras``)
+    type: int
     warnings: list[str] = field(default_factory=list)
     seconds: dict[str, float] = field(default_factory=dict)
+
+    def coverage(self) -> dict[str, float]:
+        """Shares of all the materials' chart texels seen by a view, inpainted, given the fallback."""
+        counts = [int(m.charts.sum()) for m in self.materials]
+        return {k: sum(m.stats()[k] * c for m, c in zip(self.materials, counts)) / max(sum(counts), 1)
+                for k in ("seen", "inpainted", "fallback")}
+
+    @property
+    def only(self) -> MaterialLatents:
+        """The material of a one-material mesh (procedural objects, the demo, the benches)."""
+        if len(self.materials) != 1:
+            raise ValueError(f"the mesh has {len(self.materials)} materials; pick one from .materials")
+        return self.materials[0]
+
+    @property
+    def latents(self) -> np.ndarray:
+        return self.only.latents
+
+    @property
+    def prior(self) -> np.ndarray:
+        return self.only.prior
+
+    @property
+    def energy_scale(self) -> np.ndarray:
+        return self.only.energy_scale
+
+    @property
+    def projection(self) -> Projection:
+        return self.only.projection
+
+    @property
+    def charts(self) -> Tensor:
+        return self.only.charts
 
 
 def _upsample(values: Tensor, coverage: Tensor, factor: int) -> Tensor:
@@ -85,61 +135,98 @@ def _upsample(values: Tensor, coverage: Tensor, factor: int) -> Tensor:
     return (num / den.clamp(min=1e-6)).permute(0, 2, 3, 1)
 
 
-def default_texture_size(inp: MeshInput) -> int:
-    """The latent texture's side: the base colour texture's, at most ``DEFAULT_TEXTURE_SIZE`` (the
-    energy guard measures every distinct texel), and ``DEFAULT_TEXTURE_SIZE`` for a constant colour."""
-    side = max(inp.base_color.shape[:2])
-    return DEFAULT_TEXTURE_SIZE if side == 1 else max(8, min(side, DEFAULT_TEXTURE_SIZE))
+@dataclass
+class _Space:
+    """A material's texture space at its latent texture's size: what the views and the prior need."""
+
+    charts: Tensor  # (H, W) bool
+    base_color: np.ndarray  # (H, W, 3) or (1, 1, 3)
+    roughness_metalness: np.ndarray | None
+    prior: np.ndarray  # (H, W, 6)
+
+
+def _texture_spaces(inp: MeshInput, type_: int, largest: int) -> list[_Space]:
+    """Every material's charts, maps and uplift prior at its latent texture's size."""
+    spaces = []
+    mesh = inp.mesh
+    for index, material in enumerate(inp.materials):
+        shape = material.texture_shape(largest)
+        raster, reason = uv_rasterize(mesh.positions, mesh.normals, mesh.uvs, mesh.faces[mesh.materials == index],
+                                      shape)
+        if raster is None:
+            raise ValueError(f"cannot project into the texture space of material {material.name!r}: {reason}")
+        base, rm = material.maps_at(shape)
+        rm = rm if inp.pbr_known else None  # the generator's PBR flag is one per view pixel: all or none
+        spaces.append(_Space(torch.from_numpy(raster.coverage), base, rm,
+                             prior_latents(base, rm, type_, raster.normals, raster.positions)))
+    return spaces
 
 
 def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: GeneratorTrainConfig, seed: int = 0,
-             steps: int = DEFAULT_STEPS, views: int = DEFAULT_VIEWS, guidance: float = 2.0, texture_size: int = DEFAULT_TEXTURE_SIZE,
-             progress: Callable[[int, int], None] | None = None, guard_energy: bool = True,
-             samples: int = DEFAULT_SAMPLES) -> Generation:
-    """The latent texture of ``inp`` for ``prompt``; ``progress(step, steps)`` follows the sampling.
-    ``guard_energy`` False skips the energy guard (its scale map is then all 1); ``samples`` > 1
-    averages that many residuals (``LatentGenerator.sample``)."""
+             steps: int = DEFAULT_STEPS, views: int = DEFAULT_VIEWS, guidance: float = 2.0,
+             texture_size: int = DEFAULT_TEXTURE_SIZE, progress: Callable[[int, int], None] | None = None,
+             guard_energy: bool = True, samples: int = DEFAULT_SAMPLES, cameras: Cameras | None = None) -> Generation:
+    """The latent textures of ``inp``'s materials for ``prompt``; ``progress(step, steps)`` follows the
+    sampling. Each material's texture follows its maps' size up to ``texture_size`` a side.
+    ``guard_energy`` False skips the energy guard (its scale maps are then all 1); ``samples`` > 1
+    averages that many residuals (``LatentGenerator.sample``); ``cameras`` (at the model's resolution)
+    replaces the ``views`` chosen to see the surface."""
     times: dict[str, float] = {}
     t0 = time.perf_counter()
     type_, warnings = prompt_type(prompt, metallic=inp.metallic)
-    raster, reason = uv_rasterize(inp.mesh.positions, inp.mesh.normals, inp.mesh.uvs, inp.mesh.faces,
-                                  (texture_size, texture_size))
-    if raster is None:
-        raise ValueError(f"cannot project into the mesh's texture space: {reason}")
-    charts = torch.from_numpy(raster.coverage)
-    prior = prior_latents(inp.base_color, inp.roughness_metalness, type_, raster.normals, raster.positions)
+    warnings += inp.warnings
+    if type_ in METAL_REMAP:
+        warnings += [f"material {m.name!r} is a metal: its prior takes Type {METAL_REMAP[type_]} instead"
+                     for m in inp.materials if m.metallic]
+    spaces = _texture_spaces(inp, type_, texture_size)
+    times["prior"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
     res = cfg.model.size
-    cams = orbit_cameras(views, res)
-    cond_views = render_intrinsics(inp.mesh, cams, inp.base_color, prior, cfg.corpus.supersample,
-                                   inp.roughness_metalness)
+    fine_res = res * PROJECTION_UPSAMPLE
+    cams = cameras or choose_cameras(inp.mesh, [TextureSpace(s.charts) for s in spaces], views, res, fine_res)
+    times["view_choice"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    bases = [s.base_color for s in spaces]
+    cond_views = render_intrinsics(inp.mesh, cams, bases, [s.prior for s in spaces], cfg.corpus.supersample,
+                                   [s.roughness_metalness for s in spaces] if inp.pbr_known else None)
     cond = Conditions(cond_views.conditions(cond_views.latents)[None], text.embed([prompt]), torch.tensor([type_]))
     times["condition_views"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     residual = model.sample(cond, steps, seed, guidance, progress, samples)[0]
     times["sampling"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    fine_cams = orbit_cameras(views, res * PROJECTION_UPSAMPLE)
-    fine = render_intrinsics(inp.mesh, fine_cams, inp.base_color)
+    fine_cams = Cameras(fine_res, cams.focal_px * PROJECTION_UPSAMPLE, cams.camera_to_world)
+    fine = render_intrinsics(inp.mesh, fine_cams, bases)
     values = _upsample(residual.permute(0, 2, 3, 1), cond_views.coverage, PROJECTION_UPSAMPLE)
-    prior_texture = torch.from_numpy(prior)
-    # islands no view saw end on the diffuse fallback: their residual is fallback - prior
-    proj = project(values * (fine.coverage > 0.5)[..., None], fine, fine_cams, charts,
-                   diffuse_fallback_latent() - prior_texture)
+    values = values * (fine.coverage > 0.5)[..., None]
+    fallback = diffuse_fallback_latent()
+    trust = rim_trust(fine, fine_cams, PROJECTION_UPSAMPLE // 2)  # half a model pixel from an edge
+    textures, projections = [], []
+    for index, space in enumerate(spaces):
+        prior = torch.from_numpy(space.prior)
+        # islands no view saw end on the diffuse fallback: their residual is fallback - prior
+        proj = project(values, fine, fine_cams, space.charts, fallback - prior, pixels=fine.material == index,
+                       trust=trust)
+        texture = (prior + proj.texture).clamp(-1.0, 1.0)  # the encoder's latent box
+        textures.append(texture.numpy().astype(np.float16).astype(np.float32))  # as the half-float EXRs hold it
+        projections.append(proj)
     times["projection"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    texture = (prior_texture + proj.texture).clamp(-1.0, 1.0)  # the encoder's latent box
-    texture = texture.numpy().astype(np.float16).astype(np.float32)  # as the half-float EXRs hold it
-    energy = energy_guard(texture) if guard_energy else np.ones(texture.shape[:2], np.float32)
+    texels = np.concatenate([t.reshape(-1, 1, 6) for t in textures])
+    energy = energy_guard(texels) if guard_energy else np.ones(texels.shape[:2], np.float32)
+    scales = np.split(energy.reshape(-1), np.cumsum([t.shape[0] * t.shape[1] for t in textures])[:-1])
     times["energy_guard"] = time.perf_counter() - t0
-    stats = proj.stats(charts)
+    materials = [MaterialLatents(m.name, t, s.prior, scale.reshape(t.shape[:2]), p, s.charts)
+                 for m, t, s, scale, p in zip(inp.materials, textures, spaces, scales, projections)]
+    generation = Generation(materials, (cond.prior[0] + residual).clamp(-1.0, 1.0), cams, type_, warnings, times)
+    stats = generation.coverage()
     if stats["fallback"] > 0.05:
         warnings.append(f"{stats['fallback']:.0%} of the texels lie on UV islands no view saw: "
                         "they got the diffuse fallback (more --views may help)")
     if stats["seen"] < SEEN_WARNING:
         warnings.append(f"only {stats['seen']:.0%} of the texels were seen squarely by a view (thin parts, many "
                         "small UV islands or hidden surfaces): the rest is inpainted from their neighbours")
-    generated = (cond.prior[0] + residual).clamp(-1.0, 1.0)
-    return Generation(texture, prior, generated, proj, charts, type_, energy, warnings, times)
+    return generation
 
 
 def energy_guard(latents: np.ndarray) -> np.ndarray:
@@ -156,10 +243,19 @@ def energy_guard(latents: np.ndarray) -> np.ndarray:
     return scale.numpy()[inverse.reshape(-1)].reshape(latents.shape[:2])
 
 
-def preview(inp: MeshInput, latents: np.ndarray, frames: int = 4, resolution: int = 128, spp: int = 16,
-            energy_scale: np.ndarray | None = None) -> np.ndarray:
-    """Scene-linear renders (frames, H, W, 3) of the mesh with the baked latents (f_neu scaled by
-    the (H, W) ``energy_scale`` map when given), lit by the default probe.
+def preview_cameras(mesh: Mesh, frames: int, resolution: int) -> Cameras:
+    """``frames`` cameras around the object at batch's mean elevation, a quarter turn off its axes (so a
+    box shows two sides), each framing the mesh's own bounding sphere."""
+    centre = (mesh.positions.max(0) + mesh.positions.min(0)) / 2
+    radius = float(np.linalg.norm(mesh.positions - centre, axis=1).max())
+    directions = [direction(math.pi / 4 + 2 * math.pi * i / frames, math.radians(ELEVATION_DEG)) for i in range(frames)]
+    return look_at(np.stack(directions), resolution, radius, centre)
+
+
+def preview(inp: MeshInput, latents: Textures, frames: int = 4, resolution: int = 128, spp: int = 16,
+            energy_scale: Textures | None = None) -> np.ndarray:
+    """Scene-linear renders (frames, H, W, 3) of the mesh with each material's baked latents (f_neu
+    scaled by its (H, W) ``energy_scale`` map when given) over its base colour, lit by the default probe.
 
     G-buffer shading (no shadows, no interreflection), the same as the neural material's ball preview."""
     from ..neural import weights
@@ -170,17 +266,19 @@ def preview(inp: MeshInput, latents: np.ndarray, frames: int = 4, resolution: in
 
     model = weights.load()
     env = EnvMap.load(DEFAULT_PROBE)
-    cams = orbit_cameras(frames, resolution)
-    scale = np.ones(latents.shape[:2], np.float32) if energy_scale is None else energy_scale
-    iv: IntrinsicViews = render_intrinsics(inp.mesh, cams, inp.base_color,
-                                           np.concatenate([latents, scale[..., None]], -1))
+    cams = preview_cameras(inp.mesh, frames, resolution)
+    textures = per_material(latents)
+    scales = (per_material(energy_scale) if energy_scale is not None
+              else [np.ones(t.shape[:2], np.float32) for t in textures])
+    packed = [np.concatenate([t, s[..., None]], -1) for t, s in zip(textures, scales)]
+    iv: IntrinsicViews = render_intrinsics(inp.mesh, cams, [m.base_color for m in inp.materials], packed)
     out = []
     for f in range(frames):
         mask = (iv.coverage[f] > 0.5).numpy()
         to_cam = cams.origins[f].float() - iv.positions[f]
         to_cam = (to_cam / to_cam.norm(dim=-1, keepdim=True).clamp(min=1e-12)).numpy()
-        packed = torch.from_numpy(iv.latents[f].numpy().reshape(-1, 7)[mask.ravel()])
+        texel = torch.from_numpy(iv.latents[f].numpy().reshape(-1, 7)[mask.ravel()])
         base = iv.base_color[f].numpy().reshape(-1, 3)[mask.ravel()]
-        bsdf = NeuralBsdf(model, packed[:, :6], torch.from_numpy(base), packed[:, 6:])
+        bsdf = NeuralBsdf(model, texel[:, :6], torch.from_numpy(base), texel[:, 6:])
         out.append(shade_gbuffer(lambda n: bsdf, env, iv.normals[f].numpy(), to_cam, mask, spp=spp, seed=f))
     return np.stack(out)

@@ -19,7 +19,7 @@ import numpy as np
 from richmat_addon.core.enhance import enhance, resolve_type
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
 from .encoding import latent_texture
-from .mesh_input import resize_nearest
+from .mesh_input import resize
 
 PRIOR_SEED = 2 ** 40  # far from every corpus object's own draws (corpus.enhancement_seed)
 PRIOR_NAME = "richmat-prior"  # the draws depend on the material's name: one fixed name, whatever the file says
@@ -35,7 +35,7 @@ def prior_material(base_color: np.ndarray, roughness_metalness: np.ndarray | Non
     def as_map(image: np.ndarray) -> ParamMap:
         if image.shape[:2] == (1, 1):
             return ParamMap.constant(*image.reshape(-1))
-        return ParamMap(resize_nearest(image, size).astype(np.float32))
+        return ParamMap(resize(image, size).astype(np.float32))
 
     if roughness_metalness is None:
         rough, metal = ParamMap.constant(UNKNOWN_ROUGHNESS), ParamMap.constant(0.0)

@@ -61,8 +61,8 @@ def rim_trust(views: IntrinsicViews, cameras: Cameras, width: int) -> Tensor:
     edge = ~covered
     for dy, dx in ((0, 1), (1, 0)):
         h, w = covered.shape[1] - dy, covered.shape[2] - dx
-        step = (views.positions[:, :h, :w] - views.positions[:, dy:, dx:]).norm(dim=-1) > DEPTH_STEP * footprint[:, dy:, dx:]
-        step &= covered[:, :h, :w] & covered[:, dy:, dx:]
+        apart = (views.positions[:, :h, :w] - views.positions[:, dy:, dx:]).norm(dim=-1)
+        step = (apart > DEPTH_STEP * footprint[:, dy:, dx:]) & covered[:, :h, :w] & covered[:, dy:, dx:]
         edge[:, :h, :w] |= step
         edge[:, dy:, dx:] |= step
     near = torch.nn.functional.max_pool2d(edge.float()[:, None], 2 * width + 1, 1, width)[:, 0] > 0
