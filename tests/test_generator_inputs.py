@@ -189,10 +189,12 @@ def test_views_are_chosen_to_see_more_of_the_surface_than_the_orbit(parts: Path,
     model, cfg = gen.load_generator(checkpoint)
     inp = load_mesh(parts)
     orbit = gen.generate(inp, "red paint", model, cfg, steps=1, texture_size=16, guard_energy=False,
-                         cameras=orbit_cameras(4, cfg.model.size))
-    chosen = gen.generate(inp, "red paint", model, cfg, steps=1, views=4, texture_size=16, guard_energy=False)
+                         cameras=orbit_cameras(6, cfg.model.size))
+    chosen = gen.generate(inp, "red paint", model, cfg, steps=1, views=6, texture_size=16, guard_energy=False)
     seen = chosen.coverage()["seen"]
     assert seen > orbit.coverage()["seen"] and seen > 0.6
+    trained = orbit_cameras(cfg.corpus.views, cfg.model.size).camera_to_world  # the views the model knows come first
+    assert torch.allclose(chosen.cameras.camera_to_world[:cfg.corpus.views], trained)
     counts = [int(m.charts.sum()) for m in chosen.materials]
     assert seen == pytest.approx(sum(m.stats()["seen"] * c for m, c in zip(chosen.materials, counts)) / sum(counts))
     elevation = chosen.cameras.origins[:, 2] / chosen.cameras.origins.norm(dim=-1)

@@ -31,6 +31,7 @@ from .views import (ELEVATION_DEG, Cameras, IntrinsicViews, Mesh, Textures, dire
 SHIPPED = Path(__file__).resolve().parent / "weights"
 SEEN_WARNING = 0.5  # below this share of directly seen texels the result is mostly inpainted: say so
 PROJECTION_UPSAMPLE = 8  # generated views are upsampled this much before splatting, so texels get dense samples
+CHOICE_UPSAMPLE = 4  # candidate views are judged at this multiple of the model's resolution
 
 
 def load_generator(folder: Path = SHIPPED) -> tuple[LatentGenerator, GeneratorTrainConfig]:
@@ -182,8 +183,8 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     times["prior"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     res = cfg.model.size
-    fine_res = res * PROJECTION_UPSAMPLE
-    cams = cameras or choose_cameras(inp.mesh, [TextureSpace(s.charts) for s in spaces], views, res, fine_res)
+    cams = cameras or choose_cameras(inp.mesh, [TextureSpace(s.charts) for s in spaces], views, cfg.corpus.views,
+                                     res, res * CHOICE_UPSAMPLE)
     times["view_choice"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     bases = [s.base_color for s in spaces]
@@ -195,7 +196,7 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     residual = model.sample(cond, steps, seed, guidance, progress, samples)[0]
     times["sampling"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    fine_cams = Cameras(fine_res, cams.focal_px * PROJECTION_UPSAMPLE, cams.camera_to_world)
+    fine_cams = Cameras(res * PROJECTION_UPSAMPLE, cams.focal_px * PROJECTION_UPSAMPLE, cams.camera_to_world)
     fine = render_intrinsics(inp.mesh, fine_cams, bases)
     values = _upsample(residual.permute(0, 2, 3, 1), cond_views.coverage, PROJECTION_UPSAMPLE)
     values = values * (fine.coverage > 0.5)[..., None]
