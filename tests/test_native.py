@@ -10,13 +10,13 @@ import torch
 
 from batch import options
 from richmat_addon.core import albedo_fits, graph
-from richmat_addon.core.albedo_fit_data import DIELECTRIC, DIELECTRIC_OVER_E, SHEEN
+from richmat_addon.core.albedo_fit_data import DIELECTRIC, SHEEN
 from richmat_addon.core.enhance import enhance
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
-from torch_models.brdf import lobes, tables
+from torch_models.brdf import lobes
 
 from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
-from .test_osl import save_materials
+from .test_osl import BLENDER_PRELUDE, save_materials
 
 REPO = Path(__file__).resolve().parents[1]
 PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
@@ -36,13 +36,10 @@ def test_the_fits_follow_the_torch_tables():
     t = {k: torch.from_numpy(v)[:, None] for k, v in {"mu": mu, "alpha": rho ** 2, "ior": ior}.items()}
     with torch.no_grad():
         albedo = lobes.dielectric_albedo(t["mu"], t["alpha"], t["ior"], torch.ones(400, 3, dtype=torch.float64))
-        e = tables.ggx_e(t["alpha"][:, 0], t["mu"][:, 0]).numpy()
         sheen = lobes.sheen_albedo(t["mu"][:, 0], torch.from_numpy(rho)).numpy()
     albedo = albedo[:, 0].numpy()
     fitted = np.array([albedo_fits.dielectric(DIELECTRIC, m, r * r, n) for m, r, n in zip(mu, rho, ior)])
-    over_e = np.array([albedo_fits.dielectric(DIELECTRIC_OVER_E, m, r * r, n) for m, r, n in zip(mu, rho, ior)])
     assert np.abs(fitted - albedo).max() <= DIELECTRIC.max_error + 1e-3
-    assert np.abs(over_e - albedo / e).max() <= DIELECTRIC_OVER_E.max_error + 1e-3
     rough = rho >= 0.1  # the sheen fit's domain
     fitted_sheen = np.array([albedo_fits.sheen(SHEEN, m, r) for m, r in zip(mu[rough], rho[rough])])
     assert np.abs(fitted_sheen - sheen[rough]).max() <= SHEEN.max_error + 1e-3
@@ -86,7 +83,7 @@ for ior in IORS:
     diel = b.group(native_builder._dielectric_albedo(), Cosine=mu, Alpha=b.math("MULTIPLY", y, y), IOR=ior)
     sheen = b.group(native_builder._sheen_albedo(), Cosine=mu, Roughness=y)
     rgb = b.node("ShaderNodeCombineXYZ")
-    for k, socket in enumerate((diel.outputs["Albedo"], diel.outputs["Albedo over E"], sheen.outputs["Albedo"])):
+    for k, socket in enumerate((diel.outputs["Albedo"], sheen.outputs["Albedo"])):
         b.feed(rgb.inputs[k], socket)
     emission = b.node("ShaderNodeEmission")
     b.feed(emission.inputs["Color"], rgb.outputs[0])
@@ -102,32 +99,19 @@ print("RESULT " + json.dumps(out))
 
 
 def test_the_fit_nodes_compute_the_core_fits(blender_run):
-    """Emission of (A, A/E, R) over a grid of (mu, sqrt(alpha) or roughness), one grid point per pixel."""
+    """Emission of (A, R, 0) over a grid of (mu, sqrt(alpha) or roughness), one grid point per pixel."""
     size, iors = 16, [1.3, 1.5, 1.8]
     result = blender_run(f"SIZE, IORS = {size}, {iors!r}\n" + FIT_NODES)
     centres = (np.arange(size) + 0.5) / size
     for ior in iors:
         img = np.asarray(result[str(ior)])  # bottom row first: row index = y
-        want = np.array([[[albedo_fits.dielectric(DIELECTRIC, m, y * y, ior),
-                           albedo_fits.dielectric(DIELECTRIC_OVER_E, m, y * y, ior),
-                           albedo_fits.sheen(SHEEN, m, y)] for m in centres] for y in centres])
+        want = np.array([[[albedo_fits.dielectric(DIELECTRIC, m, y * y, ior), albedo_fits.sheen(SHEEN, m, y), 0.0]
+                          for m in centres] for y in centres])
         assert np.abs(img - want).max() < 1e-4, ior
 
 
-PER_TYPE = """
-import json
-import numpy as np
-import bpy
-from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
-prefer_blender_bundled_modules()
-from richmat_addon.blender import cycles_builder, preview_scene
-from richmat_addon.core.maps import EnhancedMaterial, ParamMap
-from richmat_addon.core.preview import PreviewScene
-
-def load_material(npz, name):
-    data = np.load(npz)
-    maps = {k.split(".", 1)[1]: ParamMap(data[k]) for k in data.files if k.startswith(name + ".")}
-    return EnhancedMaterial(name, 0, 0, maps.pop("base_color"), maps)
+PER_TYPE = BLENDER_PRELUDE + """
+from richmat_addon.blender import preview_scene as ball_scene
 
 def trees(material):
     found, stack = [], [material.node_tree]
@@ -141,9 +125,9 @@ out = {}
 bpy.ops.wm.read_factory_settings(use_empty=True)
 scene = bpy.context.scene
 cycles_builder.enable_osl(scene)
-preview_scene.setup(scene, PreviewScene(resolution=SIZE), PROBE, None, SAMPLES)
+ball_scene.setup(scene, PreviewScene(resolution=SIZE), PROBE, None, SAMPLES)
 scene.render.threads_mode, scene.render.threads = "FIXED", 1
-ball = bpy.data.node_groups[preview_scene.BALL].nodes["Set Material"].inputs["Material"]
+ball = bpy.data.node_groups[ball_scene.BALL].nodes["Set Material"].inputs["Material"]
 for name in NAMES:
     row = out[name] = {}
     material = cycles_builder.build_material(load_material(NPZ, name), {}, name)
@@ -157,7 +141,7 @@ for name in NAMES:
     for which in ("osl", "native"):
         scene.cycles.shading_system = which == "osl"
         cycles_builder.use_in_cycles(material, which)
-        preview_scene.render_exr(scene, Path(f"{name}_{which}.exr").resolve())
+        ball_scene.render_exr(scene, Path(f"{name}_{which}.exr").resolve())
 print("RESULT " + json.dumps(out))
 """
 

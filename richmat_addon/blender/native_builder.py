@@ -15,10 +15,10 @@ Closures (docs/backends.md says how close each one is):
 - white dielectric: a Principled BSDF with a black base and Multiscatter GGX. Its
   specular lobe is ``dielectric_bsdf(..., "multi_ggx")``: the same Fresnel, the same
   energy compensation;
-- tinted dielectric: no node tints a dielectric Fresnel. The tint's grey part
-  (its smallest channel) scales the exact lobe; the rest is a single-scatter
-  Glossy BSDF whose colour is that rest times the fitted albedo over E, so it
-  reflects the same energy but loses the Fresnel's spread across the lobe;
+- tinted dielectric: no node tints a dielectric Fresnel, but a Metallic BSDF
+  (Physical Conductor) of index (ior, 1, 1) and no extinction reflects the exact
+  dielectric Fresnel in red and nothing in green and blue. Three of them, one per
+  channel, scaled by the tint's channels, make ``tint x dielectric``;
 - conductor: Metallic BSDF (Physical Conductor, Multiscatter GGX), with
   Gulbrandsen's (n, k) from ``artistic_ior`` computed in vector math;
 - diffuse: Diffuse BSDF.
@@ -36,7 +36,7 @@ from typing import Callable, Union
 import bpy
 
 from ..core import albedo_fits, graph, osl
-from ..core.albedo_fit_data import DIELECTRIC, DIELECTRIC_OVER_E, SHEEN
+from ..core.albedo_fit_data import DIELECTRIC, SHEEN
 from ..core.schema import ALPHA_MIN, SHEEN_ROUGHNESS_MIN
 
 VERSION = 1
@@ -185,8 +185,7 @@ def _dielectric_albedo_fill(b: _Builder, i: Sockets) -> Sockets:
     b.feed(features.inputs[1], f0)
     b.feed(features.inputs[2], 1.0)
     y = b.math("SQRT", alpha)
-    return {fit_output: b.vector("DOT_PRODUCT", features.outputs[0], _polynomial(b, fit, mu, y))
-            for fit_output, fit in (("Albedo", DIELECTRIC), ("Albedo over E", DIELECTRIC_OVER_E))}
+    return {"Albedo": b.vector("DOT_PRODUCT", features.outputs[0], _polynomial(b, DIELECTRIC, mu, y))}
 
 
 def _sheen_albedo_fill(b: _Builder, i: Sockets) -> Sockets:
@@ -202,7 +201,7 @@ def _sheen_albedo_fill(b: _Builder, i: Sockets) -> Sockets:
 
 def _dielectric_albedo() -> bpy.types.NodeTree:
     return _group("richmat dielectric albedo", [("Cosine", "float"), ("Alpha", "float"), ("IOR", "float")],
-                  [("Albedo", "float"), ("Albedo over E", "float")], _dielectric_albedo_fill)
+                  [("Albedo", "float")], _dielectric_albedo_fill)
 
 
 def _sheen_albedo() -> bpy.types.NodeTree:
@@ -255,19 +254,31 @@ def _dielectric_fill(b: _Builder, i: Sockets) -> Sockets:
 
 
 def _tinted_dielectric_fill(b: _Builder, i: Sockets) -> Sockets:
-    """The tint's grey part (its smallest channel) on the exact lobe; the rest on a Glossy stand-in."""
+    """``tint x dielectric``, one channel at a time: a conductor of index (ior, 1, 1) reflects the dielectric's
+    exact Fresnel in red and nothing elsewhere (k = 0, n = 1 is no interface), scaled by the tint's red."""
     fit = b.group(_dielectric_albedo(), Cosine=i["Cosine"], Alpha=i["Alpha"], IOR=i["IOR"])
-    channels = b.node("ShaderNodeSeparateXYZ")
-    b.feed(channels.inputs[0], i["Tint"])
-    grey = b.math("MINIMUM", b.math("MINIMUM", channels.outputs[0], channels.outputs[1]), channels.outputs[2])
-    glossy = b.bsdf("ShaderNodeBsdfGlossy", i, distribution="GGX", label="(tint - grey) x albedo / E")
-    rest = b.vector("SUBTRACT", i["Tint"], grey)
-    b.feed(glossy.inputs["Color"], b.vector("SCALE", rest, fit.outputs["Albedo over E"]))
-    b.feed(glossy.inputs["Roughness"], _roughness(b, i["Alpha"]))
-    both = b.node("ShaderNodeAddShader")
-    b.feed(both.inputs[0], b.weighted(_specular(b, i), grey))
-    b.feed(both.inputs[1], glossy.outputs[0])
-    return {"BSDF": b.weighted(both.outputs[0], i["Weight"]),
+    tint = b.node("ShaderNodeSeparateXYZ")
+    b.feed(tint.inputs[0], i["Tint"])
+    roughness = _roughness(b, i["Alpha"])
+    total: Socket | None = None
+    for channel in range(3):
+        ior = b.node("ShaderNodeCombineXYZ", f"IOR in channel {channel} only")
+        for k in range(3):
+            b.feed(ior.inputs[k], i["IOR"] if k == channel else 1.0)
+        bsdf = b.bsdf("ShaderNodeBsdfMetallic", i, fresnel_type="PHYSICAL_CONDUCTOR", distribution="MULTI_GGX")
+        b.feed(bsdf.inputs["IOR"], ior.outputs[0])
+        b.feed(bsdf.inputs["Extinction"], (0.0, 0.0, 0.0))
+        b.feed(bsdf.inputs["Roughness"], roughness)
+        lobe = b.weighted(bsdf.outputs[0], tint.outputs[channel])
+        if total is None:
+            total = lobe
+        else:
+            add = b.node("ShaderNodeAddShader")
+            b.feed(add.inputs[0], total)
+            b.feed(add.inputs[1], lobe)
+            total = add.outputs[0]
+    assert total is not None
+    return {"BSDF": b.weighted(total, i["Weight"]),
             "Albedo": b.vector("SCALE", i["Tint"], b.math("MULTIPLY", i["Weight"], fit.outputs["Albedo"]))}
 
 

@@ -7,9 +7,6 @@ emulates that weight in math nodes, so it needs the albedos as formulas:
 
 - ``DIELECTRIC``: a reflection-only ``dielectric_bsdf`` with ``"multi_ggx"``,
   per unit weight and white tint, of (mu, alpha, ior);
-- ``DIELECTRIC_OVER_E``: the same divided by the single-scatter GGX albedo E, the
-  colour a single-scatter Glossy BSDF needs to reflect that albedo (the tinted
-  dielectric lobe, which no Blender node has);
 - ``SHEEN``: Zeltner's sheen albedo R of (mu, roughness).
 
 Each fit is ``dot(features, P(mu, y))``: three features carry the shape (the
@@ -41,9 +38,9 @@ SHEEN_PEAK, SHEEN_PEAK_FLOOR = 2.0, 1e-3
 class AlbedoFit:
     """``dot(features, P(mu, y))`` with ``P = sum_ij coefficients[i][j] mu^i y^j``.
 
-    ``y`` is sqrt(alpha) for the dielectric fits and the sheen roughness for
-    ``SHEEN``. ``max_error`` and ``rms_error`` are against the torch tables over
-    mu in [0.1, 1] (the rim below that is looser) on the fit's domain.
+    ``y`` is sqrt(alpha) for ``DIELECTRIC`` and the roughness for ``SHEEN``.
+    ``max_error`` and ``rms_error`` are against the torch tables over mu in
+    [0.1, 1] (the rim below that is looser) on the fit's domain.
     """
 
     name: str
@@ -89,7 +86,7 @@ def _dot(a: Vector, b: Vector) -> float:
 
 
 def dielectric(fit: AlbedoFit, mu: float, alpha: float, ior: float) -> float:
-    """``DIELECTRIC`` or ``DIELECTRIC_OVER_E`` at (mu, alpha, ior), alpha clamped as the lobes clamp it."""
+    """A dielectric fit at (mu, alpha, ior), alpha clamped as the lobes clamp it."""
     alpha = min(max(alpha, ALPHA_MIN), 1.0)
     return _dot(dielectric_features(mu, alpha, ior), polynomial(fit, mu, math.sqrt(alpha)))
 
