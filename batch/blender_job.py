@@ -18,7 +18,6 @@ import argparse
 import json
 import shutil
 import sys
-import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -29,6 +28,7 @@ import bpy  # noqa: E402
 
 from batch.bl_scene import BadAsset  # noqa: E402
 from batch.options import DEFAULT_MAX_TRIANGLES  # noqa: E402
+from richmat_addon.core.stage_clock import StageClock  # noqa: E402
 
 BAD_INPUT_EXIT = 3  # batch.pipeline.BAD_INPUT_EXIT (not imported: the orchestrator side stays bpy-free)
 
@@ -42,38 +42,43 @@ def prepare(args: argparse.Namespace) -> None:
 
     from batch import bl_materials, bl_scene
 
-    bl_scene.empty_scene()
-    loaded, import_notes = bl_scene.import_asset(args.asset, args.max_triangles)
-    removed, removal_notes = bl_scene.remove_drivers_and_extras()
-    geometry = bl_scene.check_geometry(args.max_triangles)
-    notes = import_notes + removal_notes + bl_materials.unwrap_missing_uvs()
-    bl_materials.ensure_materials()
-    norm = bl_scene.normalise()
-    sources = [bl_materials.read_pbr(mat, args.max_texture) for mat in bl_materials.used_materials()]
-    notes += bl_materials.render_uv_maps(sources)
+    clock = StageClock()
+    with clock.stage("import"):
+        bl_scene.empty_scene()
+        loaded, import_notes = bl_scene.import_asset(args.asset, args.max_triangles)
+        removed, removal_notes = bl_scene.remove_drivers_and_extras()
+        geometry = bl_scene.check_geometry(args.max_triangles)
+        notes = import_notes + removal_notes + bl_materials.unwrap_missing_uvs()
+        bl_materials.ensure_materials()
+        norm = bl_scene.normalise()
+        sources = [bl_materials.read_pbr(mat, args.max_texture) for mat in bl_materials.used_materials()]
+        notes += bl_materials.render_uv_maps(sources)
     materials, taken = [], set()
     for source in sources:
         mat = source.material
-        bl_materials.bake_vertex_colours(source, args.max_texture)
         metallic = is_metallic(source.pbr)
         type_, type_note = material_type(args.type, metallic)
         normals = positions = None
         world_note = None
-        if type_ in DUST_TYPES:
-            size = bl_materials.map_size(source.pbr, args.max_texture)
-            normals, positions, world_note = mesh_maps.world_maps(bl_materials.material_surfaces(mat), size)
-        enhanced = enhance(source.pbr, type_, args.seed, world_normals=normals, world_positions=positions)
-        folder = args.work / "materials" / material_folder.safe_name(mat.name, taken)
-        material_folder.write(folder, enhanced,
-                              {"asset": args.asset.name, "material": mat.name, "type_note": type_note})
+        with clock.stage("bake"):  # mesh data rasterised into the material's texture space
+            bl_materials.bake_vertex_colours(source, args.max_texture)
+            if type_ in DUST_TYPES:
+                size = bl_materials.map_size(source.pbr, args.max_texture)
+                normals, positions, world_note = mesh_maps.world_maps(bl_materials.material_surfaces(mat), size)
+        with clock.stage("enhance"):
+            enhanced = enhance(source.pbr, type_, args.seed, world_normals=normals, world_positions=positions)
+            folder = args.work / "materials" / material_folder.safe_name(mat.name, taken)
+            material_folder.write(folder, enhanced,
+                                  {"asset": args.asset.name, "material": mat.name, "type_note": type_note})
         materials.append({"name": mat.name, "folder": folder.name, "type": type_, "type_note": type_note,
                           "metallic": metallic, "mean_base_color": source.pbr.base_color.mean().tolist(),
                           "settings": enhanced.settings,
                           "world_maps": "rasterised" if normals is not None else world_note, "notes": source.notes})
-    bpy.ops.wm.save_as_mainfile(filepath=str(args.work / "scene.blend"), copy=True, compress=False)
+    with clock.stage("save"):
+        bpy.ops.wm.save_as_mainfile(filepath=str(args.work / "scene.blend"), copy=True, compress=False)
     record = {"asset_id": args.asset_id, "type": args.type, "blender_version": bpy.app.version_string,
               **loaded, "removed": removed, "geometry": geometry, "normalisation": norm,
-              "notes": notes + [n for m in materials for n in m["notes"]], "materials": materials}
+              "notes": notes + [n for m in materials for n in m["notes"]], "materials": materials, **clock.record()}
     (args.work / "asset.json").write_text(json.dumps(record, indent=1, ensure_ascii=False, default=str))
 
 
@@ -83,50 +88,48 @@ def render(args: argparse.Namespace) -> None:
     prefer_blender_bundled_modules()  # before anything imports OpenImageIO: OSL needs Blender's copy
     from batch import bl_render, dataset_material
 
-    bpy.ops.wm.open_mainfile(filepath=str(args.work / "scene.blend"), load_ui=False, use_scripts=False)
-    prepared = json.loads((args.work / "asset.json").read_text(encoding="utf-8"))
-    scene = bpy.context.scene
-    timings: dict[str, float] = {}
-    start = time.monotonic()
-    built = {m["name"]: dataset_material.build(args.work / "materials" / m["folder"], args.graph)
-             for m in prepared["materials"]}
-    slots = [s for o in scene.objects for s in getattr(o, "material_slots", [])
-             if s.material is not None and s.material.name in built]
-    originals = [s.material.name for s in slots]
-    timings["materials"] = round(time.monotonic() - start, 3)
+    clock = StageClock()
+    with clock.stage("open"):
+        bpy.ops.wm.open_mainfile(filepath=str(args.work / "scene.blend"), load_ui=False, use_scripts=False)
+        prepared = json.loads((args.work / "asset.json").read_text(encoding="utf-8"))
+        scene = bpy.context.scene
+    with clock.stage("materials"):
+        built = {m["name"]: dataset_material.build(args.work / "materials" / m["folder"], args.graph)
+                 for m in prepared["materials"]}
+        slots = [s for o in scene.objects for s in getattr(o, "material_slots", [])
+                 if s.material is not None and s.material.name in built]
+        originals = [s.material.name for s in slots]
 
-    bl_render.configure_cycles(scene, args.resolution, args.samples, args.adaptive_threshold, args.threads,
-                               args.graph)
-    scene.world = bl_render.probe_world(args.probe)
-    cam = bl_render.orbit(scene, args.frames, bl_render.start_azimuth(args.asset_id, args.seed))
-    for slot, name in zip(slots, originals):
-        slot.material = built[name][0]
-    bl_render.beauty_output(scene, args.work / "rgb")
-    start = time.monotonic()
-    with bl_render.frame_clock() as frame_seconds:
+    with clock.stage("beauty"):
+        bl_render.configure_cycles(scene, args.resolution, args.samples, args.adaptive_threshold, args.threads,
+                                   args.graph)
+        scene.world = bl_render.probe_world(args.probe)
+        cam = bl_render.orbit(scene, args.frames, bl_render.start_azimuth(args.asset_id, args.seed))
+        for slot, name in zip(slots, originals):
+            slot.material = built[name][0]
+        bl_render.beauty_output(scene, args.work / "rgb")
+        with bl_render.frame_clock() as frame_seconds:
+            bpy.ops.render.render(animation=True, scene=scene.name)
+
+    with clock.stage("intrinsics"):
+        for slot, name in zip(slots, originals):
+            slot.material = built[name][1]
+        bl_render.intrinsics_pass(scene, args.aov_samples)
+        bl_render.add_aovs(scene.view_layers[0])
+        bl_render.compositor_outputs(scene, args.work / "passes")
+        scratch = args.work / "scratch"
+        bl_render.beauty_output(scene, scratch)  # this pass's own beauty is not wanted
         bpy.ops.render.render(animation=True, scene=scene.name)
-    timings["beauty"] = round(time.monotonic() - start, 3)
-    timings["beauty_frames"] = frame_seconds
-
-    for slot, name in zip(slots, originals):
-        slot.material = built[name][1]
-    bl_render.intrinsics_pass(scene, args.aov_samples)
-    bl_render.add_aovs(scene.view_layers[0])
-    bl_render.compositor_outputs(scene, args.work / "passes")
-    scratch = args.work / "scratch"
-    bl_render.beauty_output(scene, scratch)  # this pass's own beauty is not wanted
-    start = time.monotonic()
-    bpy.ops.render.render(animation=True, scene=scene.name)
-    timings["intrinsics"] = round(time.monotonic() - start, 3)
-    shutil.rmtree(scratch)
-    cameras = bl_render.camera_record(scene, cam, args.frames)
-    (args.work / "cameras.json").write_text(json.dumps(cameras, indent=1))
-    start = time.monotonic()
-    bl_render.encode_video(args.work / "rgb", args.frames, fps=8, out=args.work / "orbit.mp4")
-    timings["video"] = round(time.monotonic() - start, 3)
+        shutil.rmtree(scratch)
+    with clock.stage("video"):
+        cameras = bl_render.camera_record(scene, cam, args.frames)
+        (args.work / "cameras.json").write_text(json.dumps(cameras, indent=1))
+        bl_render.encode_video(args.work / "rgb", args.frames, fps=8, out=args.work / "orbit.mp4")
     frames = [{"frame": i, "beauty": f"rgb/{i:04d}.png", "intrinsics": f"passes/{i:04d}.exr"}
               for i in range(args.frames)]
-    (args.work / "render.json").write_text(json.dumps({"frames": frames, "timings_s": timings}, indent=1))
+    record = clock.record()
+    record["timings_s"]["beauty_frames"] = frame_seconds
+    (args.work / "render.json").write_text(json.dumps({"frames": frames, **record}, indent=1))
 
 
 def parse(argv: list[str]) -> argparse.Namespace:

@@ -6,7 +6,8 @@ once per asset, and writes ``fit.json`` with each material's white-furnace
 result. The fit refits a latent that gains energy under the energy bound and
 scales the f_neu of one that still does (``energy_scale``, see
 docs/neural-material.md) instead of dropping the material; how many passed as
-fitted, after the refit and by scaling is recorded per material and in the manifest.
+fitted, after the refit and by scaling is recorded per material and in the manifest,
+with the wall and CPU seconds of each fit and of its energy check.
 """
 from __future__ import annotations
 
@@ -29,20 +30,27 @@ def main(argv: list[str]) -> int:
     import torch
 
     from richmat_addon.core import material_folder, neural_folder
+    from richmat_addon.core.stage_clock import StageClock
     from torch_models.cli import main as torch_models_main
 
+    clock = StageClock()
     torch.set_num_threads(args.threads)
     record: dict = {"torch_version": torch.__version__, "decoder": str(args.decoder), "materials": {}}
     for folder in sorted(p.parent for p in (args.work / "materials").glob(f"*/{material_folder.RECORD}")):
-        code = torch_models_main(["fit", str(folder), "--out", str(folder / "neural"),
-                                  "--weights", str(args.decoder), "--steps", str(args.steps)])
+        with clock.stage("fit"):
+            code = torch_models_main(["fit", str(folder), "--out", str(folder / "neural"),
+                                      "--weights", str(args.decoder), "--steps", str(args.steps)])
         if code != 0:
             raise SystemExit(f"fit of {folder.name} failed with exit code {code}")
         neural = neural_folder.read(folder / "neural").record
         record["materials"][folder.name] = {"furnace": neural["furnace"], "final_loss": neural["final_loss"],
                                             "fitted_vectors": neural["fitted_vectors"],
-                                            "decoder_sha256": neural["decoder_sha256"]}
-    (args.work / "fit.json").write_text(json.dumps(record, indent=1))
+                                            "decoder_sha256": neural["decoder_sha256"],
+                                            "timings_s": neural["timings_s"], "cpu_s": neural["cpu_s"]}
+    timed = clock.record()
+    for kind in timed:  # the energy check's share of "fit", over all materials
+        timed[kind]["energy"] = round(sum(m[kind]["energy"] for m in record["materials"].values()), 3)
+    (args.work / "fit.json").write_text(json.dumps({**record, **timed}, indent=1))
     return 0
 
 

@@ -151,6 +151,7 @@ def _manifest(asset: Asset, job: Job, timings: dict[str, float], attempts: int) 
     prepared = json.loads((work / "asset.json").read_text(encoding="utf-8"))
     rendered = json.loads((work / "render.json").read_text(encoding="utf-8"))
     fitted = json.loads((work / "fit.json").read_text(encoding="utf-8"))
+    children = {"prepare": prepared, "fit": fitted, "render": rendered}
     text = captions.caption(asset.path.name.rsplit(".", 1)[0], prepared["materials"])
     (work / "caption.txt").write_text(text + "\n", encoding="utf-8")
     return {"asset_id": asset.id, "source": asset.key, "source_sha256": file_sha256(asset.path),
@@ -160,8 +161,15 @@ def _manifest(asset: Asset, job: Job, timings: dict[str, float], attempts: int) 
             "materials": prepared["materials"], "fit": fitted, "frames": rendered.get("frames"),
             "versions": {"blender": prepared.get("blender_version"), "torch": fitted.get("torch_version"),
                          "python": platform.python_version(), "pipeline": job.settings.pipeline},
-            "timings_s": {**timings, **{f"render_{k}": v for k, v in rendered.get("timings_s", {}).items()}},
+            "timings_s": {**timings, **_stage_times(children, "timings_s")},
+            "cpu_s": _stage_times(children, "cpu_s"),
             "attempts": attempts}
+
+
+def _stage_times(children: dict[str, dict[str, Any]], kind: str) -> dict[str, Any]:
+    """The children's own ``kind`` records (``timings_s``: wall, ``cpu_s``: CPU), each key prefixed with
+    its stage: ``render_beauty``. The orchestrator's wall seconds per child are the unprefixed keys."""
+    return {f"{stage}_{k}": v for stage, record in children.items() for k, v in record.get(kind, {}).items()}
 
 
 def process(asset: Asset, job: Job) -> Result:

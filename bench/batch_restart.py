@@ -88,9 +88,9 @@ MP4_DATE = re.compile(rb"\d{4}/\d\d/\d\d \d\d:\d\d:\d\d")  # the ffmpeg muxer's 
 
 
 def without_timings(value: Any) -> Any:
-    """A JSON value with every ``timings_s`` entry (and a manifest's file hashes) left out."""
+    """A JSON value with every ``timings_s`` and ``cpu_s`` entry (and a manifest's file hashes) left out."""
     if isinstance(value, dict):
-        return {k: without_timings(v) for k, v in value.items() if k not in ("timings_s", "files")}
+        return {k: without_timings(v) for k, v in value.items() if k not in ("timings_s", "cpu_s", "files")}
     if isinstance(value, list):
         return [without_timings(v) for v in value]
     return value

@@ -50,6 +50,8 @@ def test_fit_writes_latent_textures_and_fits_each_vector_once(tiny_weights: Path
     counts = record["furnace"]
     assert counts["passed_as_fitted"] + counts["passed_after_refit"] + counts["repaired_by_scaling"] \
         == counts["checked"] == record["fitted_vectors"]
+    # what the farm prices a fit by: CPU seconds per part, the energy check split into its own
+    assert {"read", "fit", "energy", "energy_check"} <= record["cpu_s"].keys() <= record["timings_s"].keys()
 
 
 def test_latents_that_gain_energy_are_refitted_under_the_bound() -> None:

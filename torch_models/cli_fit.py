@@ -4,8 +4,9 @@ MATERIAL_DIR is a folder written by ``enhance`` (params.json and parameter EXRs)
 Writes OUT/latent_0.exr and OUT/latent_1.exr (latent channels 0-2 and 3-5 at
 the material's texture resolution) or, for a constant material, the latent in
 OUT/neural.json, which also records the decoder's digest, how many distinct
-vectors were fitted, the loss and the white-furnace result. Ctrl-C saves the
-state; ``--resume`` continues it.
+vectors were fitted, the loss, the white-furnace result and the wall and CPU
+seconds of reading, fitting and the energy check. Ctrl-C saves the state;
+``--resume`` continues it.
 
 ``--progress jsonl`` replaces the progress bar with one JSON object per line on
 stdout, for the Blender add-on (docs/addon.md): ``{"event": "progress", "step",
@@ -38,13 +39,17 @@ def run(args: argparse.Namespace) -> int:
     from safetensors.torch import load_file, save_file
     from tqdm import tqdm
 
+    from richmat_addon.core.stage_clock import StageClock
+
     from .cli import InputError, atomic_path, emit, emit_done
     from .neural import energy, fitting, material_vectors, weights
 
     jsonl = args.progress == "jsonl"
+    clock = StageClock()
     try:
-        mv = material_vectors.read_vectors(args.material)
-        model = weights.load(args.weights or weights.SHIPPED)
+        with clock.stage("read"):
+            mv = material_vectors.read_vectors(args.material)
+            model = weights.load(args.weights or weights.SHIPPED)
     except (ValueError, FileNotFoundError, KeyError) as exc:
         if jsonl:
             emit("error", message=str(exc))
@@ -67,8 +72,9 @@ def run(args: argparse.Namespace) -> int:
     with tqdm(total=args.steps, initial=done, desc=f"fit {len(mv.unique)} vectors", unit="step",
               disable=jsonl) as bar:
         try:
-            z = fitting.fit_latents(model, mv.unique, max(0, args.steps - done), seed=args.seed + done,
-                                start=start, progress=progress)
+            with clock.stage("fit"):
+                z = fitting.fit_latents(model, mv.unique, max(0, args.steps - done), seed=args.seed + done,
+                                        start=start, progress=progress)
         except KeyboardInterrupt:
             if latest["z"] is not None:
                 with atomic_path(state) as tmp:
@@ -78,10 +84,14 @@ def run(args: argparse.Namespace) -> int:
     # The energy refit gets no more steps than the fit had: a quick fit stays quick, and what the
     # short refit leaves over the bound is scaled, as the furnace check counts.
     refit_steps = min(energy.REFIT_STEPS, args.steps)
-    bounded = energy.fit_bounded(model, mv.unique, z, seed=args.seed, steps=refit_steps)
+    with clock.stage("energy"):
+        bounded = energy.fit_bounded(model, mv.unique, z, seed=args.seed, steps=refit_steps)
+    timed = clock.record(whole_process=False)
+    for kind, parts in bounded.seconds.items():  # the energy check's own split: check, refit, recheck
+        timed[kind].update({f"energy_{part}": value for part, value in parts.items()})
     record = material_vectors.write_fit(args.out, mv, bounded, model.digest, {
         "material": os.path.relpath(args.material, args.out), "steps": args.steps, "refit_steps": refit_steps,
-        "final_loss": latest["loss"]})
+        "final_loss": latest["loss"], **timed})
     state.unlink(missing_ok=True)
     if jsonl:
         emit_done(args.out)

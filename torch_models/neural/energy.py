@@ -11,11 +11,13 @@ generated latents pass as they are, and ``furnace`` stays a measurement.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
 from torch import Tensor
+
+from richmat_addon.core.stage_clock import StageClock
 
 from .data import cosine_hemisphere, make_batch, view_directions
 from .fitting import FIT_BATCH, FIT_BUFFER, deterministic, fitting_loss, fitting_pool
@@ -128,6 +130,8 @@ class BoundedFit:
     z: Tensor
     check: Furnace
     refitted: Tensor  # (K,) bool: the first fit gained energy; the latent was fitted again under the bound
+    # wall ("timings_s") and CPU ("cpu_s") seconds of the check, the refit and the recheck: what the farm pays
+    seconds: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def counts(self) -> dict[str, int]:
         """How each latent came to pass: as fitted, after the refit, or by the energy scale."""
@@ -148,18 +152,24 @@ def fit_bounded(model: NeuralModel, vectors: np.ndarray, z: Tensor, seed: int = 
     moves it to the side the furnace accepts, at the least cost in the loss. What
     still gains energy is then scaled by ``Furnace.energy_scale``.
     """
+    clock = StageClock()
     if model.decoder.bounded:
-        return BoundedFit(z, bound_furnace(model, z), torch.zeros(len(z), dtype=torch.bool))
-    check = furnace(model, z, seed=seed)
+        with clock.stage("check"):
+            check = bound_furnace(model, z)
+        return BoundedFit(z, check, torch.zeros(len(z), dtype=torch.bool), clock.record(whole_process=False))
+    with clock.stage("check"):
+        check = furnace(model, z, seed=seed)
     refitted = check.failing.clone()
     failing = refitted.nonzero(as_tuple=True)[0]
     if len(failing) and steps > 0:
         z = z.clone()
-        z[failing] = _refit(model, vectors[failing.numpy()], z[failing], steps, seed)
-        again = furnace(model, z[failing], seed=seed + 1)
+        with clock.stage("refit"):
+            z[failing] = _refit(model, vectors[failing.numpy()], z[failing], steps, seed)
+        with clock.stage("recheck"):
+            again = furnace(model, z[failing], seed=seed + 1)
         for name in ("albedos", "std_errors", "transmissions", "quadrature"):
             getattr(check, name)[failing] = getattr(again, name)
-    return BoundedFit(z, check, refitted)
+    return BoundedFit(z, check, refitted, clock.record(whole_process=False))
 
 
 def _refit(model: NeuralModel, vectors: np.ndarray, z0: Tensor, steps: int, seed: int) -> Tensor:
