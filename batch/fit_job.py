@@ -24,6 +24,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--work", type=Path, required=True)
     parser.add_argument("--decoder", type=Path, required=True)
     parser.add_argument("--steps", type=int, required=True)
+    parser.add_argument("--cluster-step", type=float, required=True)
     parser.add_argument("--threads", type=int, default=1)
     args = parser.parse_args(argv)
     sys.path.insert(0, str(REPO))
@@ -39,7 +40,8 @@ def main(argv: list[str]) -> int:
     for folder in sorted(p.parent for p in (args.work / "materials").glob(f"*/{material_folder.RECORD}")):
         with clock.stage("fit"):
             code = torch_models_main(["fit", str(folder), "--out", str(folder / "neural"),
-                                      "--weights", str(args.decoder), "--steps", str(args.steps)])
+                                      "--weights", str(args.decoder), "--steps", str(args.steps),
+                                      "--cluster-step", repr(args.cluster_step)])
         if code != 0:
             raise SystemExit(f"fit of {folder.name} failed with exit code {code}")
         neural = neural_folder.read(folder / "neural").record

@@ -18,6 +18,8 @@ DEFAULT_PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
 DEFAULT_DECODER = REPO / "torch_models" / "neural" / "weights"
 # 5 M triangles import in about 25 s with 1.2 GB of memory (docs/batch.md); far beyond any one material's needs.
 DEFAULT_MAX_TRIANGLES = 5_000_000
+# The fit's own step (core.texel_vectors.QUANT); the energy check costs per vector fitted.
+DEFAULT_CLUSTER_STEP = 1 / 256
 # Bumped when the per-asset output format or pipeline changes meaning.
 PIPELINE_VERSION = 1
 
@@ -50,6 +52,9 @@ def build_parser() -> argparse.ArgumentParser:
     add("--decoder", type=Path, default=DEFAULT_DECODER, help="trained decoder folder "
                                                              "(weights.safetensors + state.json)")
     add("--fit-steps", type=int, default=300, help="latent optimisation steps per material")
+    add("--cluster-step", type=float, default=DEFAULT_CLUSTER_STEP,
+        help="texel vectors that agree to this step per normalised parameter are fitted as one: the energy "
+             "check costs per fitted vector (default chosen by bench/farm_cost.py, docs/batch.md)")
     add("--max-texture", type=int, default=512, help="larger textures are downscaled to this size (noted)")
     add("--max-triangles", type=int, default=DEFAULT_MAX_TRIANGLES,
         help="assets whose meshes have more triangles are refused with the count (a glTF before it is imported)")
@@ -80,6 +85,7 @@ class Settings:
     probe_sha256: str
     decoder_sha256: str
     fit_steps: int
+    cluster_step: float
     max_texture: int
     seed: int
 
@@ -102,6 +108,8 @@ def validate(args: argparse.Namespace) -> None:
                  "max_triangles"):
         if getattr(args, name) < 1:
             raise ValueError(f"--{name.replace('_', '-')} must be at least 1")
+    if not 0 < args.cluster_step <= 1:
+        raise ValueError("--cluster-step must be in (0, 1]")
     if args.timeout <= 0 or args.retries < 0:
         raise ValueError("--timeout must be positive and --retries non-negative")
     if not args.probe.is_file():
@@ -114,7 +122,8 @@ def validate(args: argparse.Namespace) -> None:
 def settings_of(args: argparse.Namespace) -> Settings:
     return Settings(PIPELINE_VERSION, args.frames, args.resolution, args.samples, args.adaptive_threshold,
                     args.aov_samples, args.graph, file_sha256(args.probe),
-                    file_sha256(args.decoder / "weights.safetensors"), args.fit_steps, args.max_texture, args.seed)
+                    file_sha256(args.decoder / "weights.safetensors"), args.fit_steps, args.cluster_step,
+                    args.max_texture, args.seed)
 
 
 def cpu_threads(workers: int) -> int:

@@ -13,6 +13,7 @@ from richmat_addon.core.builtin import chipped_paint, sphere_texel_geometry
 from richmat_addon.core.enhance import enhance
 from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.maps import ParamMap, PbrInputs
+from richmat_addon.core.texel_vectors import normalise, texel_matrix
 from torch_models.cli import main
 from torch_models.neural import energy, fitting, loss, material_vectors, quadrature
 from tests.test_neural_training import TINY
@@ -52,6 +53,18 @@ def test_fit_writes_latent_textures_and_fits_each_vector_once(tiny_weights: Path
         == counts["checked"] == record["fitted_vectors"]
     # what the farm prices a fit by: CPU seconds per part, the energy check split into its own
     assert {"read", "fit", "energy", "energy_check"} <= record["cpu_s"].keys() <= record["timings_s"].keys()
+
+
+def test_a_coarser_cluster_step_fits_fewer_vectors(tiny_weights: Path, textured: Path, tmp_path: Path) -> None:
+    """The farm's --cluster-step: fewer representatives, each texel still within one step of its own."""
+    fine, coarse = material_vectors.read_vectors(textured), material_vectors.read_vectors(textured, 1 / 8)
+    assert len(coarse.unique) < len(fine.unique)
+    _, texels = texel_matrix(textured)
+    assert np.abs(normalise(coarse.unique[coarse.inverse]) - normalise(texels)).max() <= 1 / 8
+    out = tmp_path / "fit"
+    assert main(["fit", str(textured), "--out", str(out), "--weights", str(tiny_weights), "--steps", "2",
+                 "--cluster-step", "0.125"]) == 0
+    assert neural_folder.read(out).record["fitted_vectors"] == len(coarse.unique)
 
 
 def test_latents_that_gain_energy_are_refitted_under_the_bound() -> None:

@@ -30,6 +30,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--weights", type=Path, default=None, help="a training run folder (default: shipped)")
     parser.add_argument("--resume", action="store_true", help="continue an interrupted fit in OUT")
     parser.add_argument("--seed", type=int, default=0, help="seed of the direction samples (default: 0)")
+    parser.add_argument("--cluster-step", type=float, default=None,
+                        help="merge texel vectors that agree to this step per normalised parameter (default: "
+                             "1/256); a coarser step fits fewer vectors, and the energy check costs per vector")
     parser.add_argument("--progress", choices=("bar", "jsonl"), default="bar",
                         help="a progress bar (default) or JSON lines on stdout (for the Blender add-on)")
 
@@ -48,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
     clock = StageClock()
     try:
         with clock.stage("read"):
-            mv = material_vectors.read_vectors(args.material)
+            step = material_vectors.QUANT if args.cluster_step is None else args.cluster_step
+            mv = material_vectors.read_vectors(args.material, step)
             model = weights.load(args.weights or weights.SHIPPED)
     except (ValueError, FileNotFoundError, KeyError) as exc:
         if jsonl:

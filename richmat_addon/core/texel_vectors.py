@@ -2,10 +2,14 @@
 
 Model no more than the material needs: texels with equal parameter vectors are
 encoded or fitted once (exact dedupe), then vectors that agree to within a
-quantisation step in the normalised parameter space are merged (every texel is
-within half a step, ``QUANT / 2`` per normalised coordinate, of its
-representative). A constant material stays one vector. Torch-free, so the
+quantisation step in the normalised parameter space are merged into their mean
+(every texel is within one step, ``QUANT`` per normalised coordinate, of its
+representative: both lie in the same cell). A constant material stays one vector. Torch-free, so the
 add-on's numpy encoder in a stock Blender dedupes as the torch fit does.
+
+A coarser step fits fewer vectors: the fit's energy check costs per vector, so
+the farm trades a measured accuracy for time with it (``--cluster-step``,
+bench/farm_cost.py).
 """
 from __future__ import annotations
 
@@ -34,6 +38,7 @@ class TexelVectors:
     unique: np.ndarray  # (K, 22) representatives
     inverse: np.ndarray  # (H*W,) representative of every texel (empty when constant)
     exact_unique: int  # distinct vectors before merging
+    step: float = QUANT  # the merging step in the normalised parameter space
 
     def texels(self, per_vector: np.ndarray) -> np.ndarray:
         """Per-representative values (K, C) scattered to the texture, (H, W, C); any array-like
@@ -44,8 +49,8 @@ class TexelVectors:
         return np.ascontiguousarray(values.reshape(*self.shape, -1))
 
 
-def read_vectors(folder: Path) -> TexelVectors:
-    """Parameter vectors of an enhanced material folder (params.json + EXRs)."""
+def texel_matrix(folder: Path) -> tuple[tuple[int, int] | None, np.ndarray]:
+    """(texture size or None, every texel's packed vector (H*W or 1, 22)) of an enhanced material folder."""
     mf = material_folder.read(folder)
     maps = {p.name: mf.map(p.name).value for p in PARAMS}
     shape = max((m.shape[:2] for m in maps.values() if m.ndim == 3), default=None, key=lambda s: s[0] * s[1])
@@ -60,12 +65,17 @@ def read_vectors(folder: Path) -> TexelVectors:
             columns.append(m.reshape(-1, p.channels))
         else:
             columns.append(np.broadcast_to(m, ((shape[0] * shape[1]) if shape else 1, p.channels)))
-    vectors = np.nan_to_num(np.concatenate(columns, 1).astype(np.float32))
+    return shape, np.nan_to_num(np.concatenate(columns, 1).astype(np.float32))
+
+
+def read_vectors(folder: Path, step: float = QUANT) -> TexelVectors:
+    """Parameter vectors of an enhanced material folder (params.json + EXRs), merged at ``step``."""
+    shape, vectors = texel_matrix(folder)
     exact, inverse = np.unique(vectors, axis=0, return_inverse=True)
-    keys = np.round(normalise(exact) / QUANT).astype(np.int64)
+    keys = np.round(normalise(exact) / step).astype(np.int64)
     merged_keys, merged_of_exact = np.unique(keys, axis=0, return_inverse=True)
     representatives = np.zeros((len(merged_keys), vectors.shape[1]), np.float32)
     np.add.at(representatives, merged_of_exact.ravel(), exact)
     representatives /= np.bincount(merged_of_exact.ravel())[:, None]
     texel_rep = merged_of_exact.ravel()[inverse.ravel()] if shape else np.zeros(0, np.int64)
-    return TexelVectors(shape, representatives, texel_rep, len(exact))
+    return TexelVectors(shape, representatives, texel_rep, len(exact), step)

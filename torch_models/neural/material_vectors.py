@@ -24,7 +24,7 @@ def write_fit(out: Path, mv: MaterialVectors, bounded: BoundedFit, decoder_sha25
     scale = check.energy_scale()
     record = {"texels": int(len(mv.inverse)) if mv.shape else 1,
               "exact_unique_vectors": mv.exact_unique, "fitted_vectors": len(mv.unique),
-              "cluster_bound": f"each texel within {QUANT / 2:g} of its representative per normalised parameter",
+              "cluster_bound": f"each texel within {mv.step:g} of its representative per normalised parameter",
               "furnace": dict(bounded.counts(), worst_albedo=float(check.albedo.max())), **fields}
     if mv.shape is None:
         return neural_folder.write(out, z[0].detach().numpy(), scale.detach().numpy(), decoder_sha256, record)
