@@ -1,11 +1,14 @@
 """The add-on end to end on real assets: Uplift -> Bake -> Fit -> Preview -> Export.
 
-Builds the extension exactly as the tests do (``make extension``), installs the
-zip into the pip bpy module with a temporary BLENDER_USER_RESOURCES and, per
+Builds the extension exactly as the tests do (``make extension``), copies the
+zip aside (other runs of ``make extension`` rewrite dist/ meanwhile, and every
+asset must get the same add-on), installs it into the pip bpy module with a temporary BLENDER_USER_RESOURCES and, per
 asset in its own Blender process, imports the glTF and runs every operator on
 every mesh (every material slot), recording per step: ok or the error messages,
 wall seconds, the files written and a Cycles render of the asset lit by the
-preview probe (the world the neural preview's lobe sees). The fit step's render
+preview probe (the world the neural preview's lobe sees), with OSL on: the
+enhanced material is then Cycles' exact OSL shader, and the neural preview runs
+only there. The fit step's render
 shows latent texture 0 on the asset (0.5 + 0.25 z as colour); Export changes
 nothing visible and has no render.
 
@@ -14,13 +17,13 @@ compresses, under the same camera and light: the report holds their mean FLIP
 over the asset's pixels, and the step sheet shows one row per asset with Bake
 and Preview side by side and the FLIP map beside them.
 
-    python -m bench.addon_assets [--assets WaterBottle ...] [--steps 100] [--size 320] [--samples 16]
-        [--texture-size 256] [--out docs/reports/addon_assets.json] [--sheet docs/reports/addon_steps.png]
+    python -m bench.addon_assets [--assets WaterBottle ...] [--steps 100] [--size 320] [--samples 32]
+        [--texture-size 128] [--out docs/reports/addon_assets.json] [--sheet docs/reports/addon_steps.png]
 
 The asset's images are scaled down to ``--texture-size`` texels first (default
-256; 0 keeps them): Bake writes maps at the input textures' resolution and the
-fit's cost grows with them, and the full 1K-2K maps take tens of minutes per
-material on a shared 2-core machine. Every step still runs on the real meshes,
+128; 0 keeps them): Bake writes maps at the input textures' resolution and the
+fit's cost grows with the distinct texel vectors; at 256 texels FlightHelmet's
+first material alone took 53 minutes on the shared 2-core machine. Every step still runs on the real meshes,
 materials and texture content. The report is rewritten after each asset.
 """
 from __future__ import annotations
@@ -28,6 +31,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import os
+import shutil
 import tempfile
 import time
 import zipfile
@@ -52,6 +56,7 @@ PIPELINE = r'''
 import math
 from mathutils import Vector
 from bl_ext.user_default.richmat.blender import uplift
+from bl_ext.user_default.richmat.blender.cycles_builder import enable_osl
 from bl_ext.user_default.richmat.core import neural_folder
 # The preview scene's setup is not part of the extension (no operator uses it): from the repository.
 from richmat_addon.blender import preview_scene
@@ -79,6 +84,7 @@ def frame_camera():
     renders only show each step, so they are denoised (OpenImageDenoise).
     """
     preview_scene.setup(scene, PreviewScene(resolution=SIZE), Path(PROBE), None, SAMPLES, with_ball=False)
+    enable_osl(scene)  # before Uplift, so the enhanced materials render with their OSL graph
     scene.cycles.use_denoising, scene.cycles.denoiser = True, "OPENIMAGEDENOISE"
     corners = [o.matrix_world @ Vector(c) for o in meshes() for c in o.bound_box]
     lo = Vector([min(c[i] for c in corners) for i in range(3)])
@@ -307,18 +313,23 @@ def main() -> None:
     parser.add_argument("--assets", nargs="+", default=list(ASSETS))
     parser.add_argument("--steps", type=int, default=100, help="fit steps (the operator's Fit Steps)")
     parser.add_argument("--size", type=int, default=320, help="render size in pixels")
-    parser.add_argument("--samples", type=int, default=16, help="Cycles samples per pixel of the renders")
-    parser.add_argument("--texture-size", type=int, default=256,
+    parser.add_argument("--samples", type=int, default=32, help="Cycles samples per pixel of the renders")
+    parser.add_argument("--texture-size", type=int, default=128,
                         help="scale the asset's images down to this many texels at most (0: as stored)")
     add_out_argument(parser, "addon_assets.json")
     parser.add_argument("--sheet", type=Path, default=REPORTS / "addon_steps.png", help="the step sheet (PNG)")
     args = parser.parse_args()
+    with tempfile.TemporaryDirectory(prefix="richmat_extension_") as pinned:
+        run(args, Path(shutil.copy2(build_extension(), pinned)))
 
-    zip_path = build_extension()
+
+def run(args: argparse.Namespace, zip_path: Path) -> None:
+    """Every asset with the extension ``zip_path``; the report and the sheet rewritten after each."""
     bundled = bundled_decoder_sha256(zip_path)
     if bundled != weights.digest():
         raise SystemExit(f"the extension ships decoder {bundled[:8]}, not the shipped {weights.digest()[:8]}")
     report = dict(probe=DEFAULT_PROBE.name, extension=zip_path.name,
+                  extension_sha256=hashlib.sha256(zip_path.read_bytes()).hexdigest(),
                   settings=dict(fit_steps=args.steps, texture_size=args.texture_size, render_size=args.size,
                                 render_samples=args.samples, torch_threads=os.environ.get("OMP_NUM_THREADS", "all")),
                   assets={})
