@@ -196,8 +196,7 @@ def test_timeout_kills_the_whole_process_group(tmp_path: Path) -> None:
     # ended at its 1 s timeout, not by waiting out the 300 s grandchild: a margin no load closes
     assert out.timed_out and not out.ok and time.monotonic() - start < 100
     grandchild = int((tmp_path / "logs" / "x.out").read_text().split()[0])
-    time.sleep(0.2)
-    assert not _alive(grandchild)
+    assert _dies(grandchild)
 
 
 def test_segfault_is_recorded_with_signal_and_stderr(tmp_path: Path) -> None:
@@ -212,6 +211,17 @@ def _alive(pid: int) -> bool:
             return f.read().split()[2] != "Z"
     except FileNotFoundError:
         return False
+
+
+def _dies(pid: int, within: float = 30.0) -> bool:
+    """Whether a process sent SIGKILL is gone within ``within`` seconds: the kernel ends it
+    asynchronously, which on a loaded machine takes longer than a fixed short sleep."""
+    deadline = time.monotonic() + within
+    while _alive(pid):
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.05)
+    return True
 
 
 def test_bad_hanging_and_crashing_assets_do_not_stop_the_batch(tmp_path: Path, fakes: Commands,
@@ -231,7 +241,7 @@ def test_bad_hanging_and_crashing_assets_do_not_stop_the_batch(tmp_path: Path, f
     assert "unsupported format" in by_source["notes.txt.xyz"]["reason"]
     assert by_source["good.glb"]["notes"] == ["n"]
     for pid in map(int, (tmp_path / "pids.txt").read_text().split()):
-        assert not _alive(pid)  # the hanging asset's grandchildren died with it
+        assert _dies(pid)  # the hanging asset's grandchildren died with it
     assert not list(out.glob("*.partial"))
     assert (out / "_logs").is_dir()  # failed assets keep their child logs
     published = [p for p in out.iterdir() if not p.name.startswith("_")]
