@@ -1,9 +1,7 @@
 """`generate` on real-asset inputs, tiny meshes made here: several parts and materials, mirrored UVs,
 a part without UVs, a tiled material; every material keeps its UVs and maps, views cover the surface,
 and each material gets its own neural folder."""
-import io
 import json
-import struct
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +20,7 @@ from torch_models.generator import generate as gen
 from torch_models.generator.mesh_input import load_mesh
 from torch_models.generator.views import orbit_cameras
 from tests.test_generator_generate import checkpoint  # noqa: F401  (tiny trained generator, module fixture)
+from tests.test_gltf_io import _Builder, png
 
 torch.set_num_threads(1)
 # a base colour texture wider than tall, red on the left and blue on the right: its mean is purple
@@ -33,34 +32,8 @@ ROUGH_METAL[..., 1] = np.linspace(0, 255, 16, dtype=np.uint8)  # roughness rises
 ROUGH_METAL[..., 2] = 51  # metalness 0.2
 
 
-def _png(array: np.ndarray) -> bytes:
-    buffer = io.BytesIO()
-    Image.fromarray(array).save(buffer, format="PNG")
-    return buffer.getvalue()
-
-
-class _Glb:
-    """A minimal glTF writer: accessors and images into one binary buffer."""
-
-    def __init__(self) -> None:
-        self.bin, self.views, self.accessors = bytearray(), [], []
-
-    def view(self, data: bytes) -> int:
-        self.bin += b"\0" * (-len(self.bin) % 4)
-        self.views.append({"buffer": 0, "byteOffset": len(self.bin), "byteLength": len(data)})
-        self.bin += data
-        return len(self.views) - 1
-
-    def accessor(self, array: np.ndarray) -> int:
-        array = np.ascontiguousarray(array)
-        kind = {1: "SCALAR", 2: "VEC2", 3: "VEC3"}[1 if array.ndim == 1 else array.shape[1]]
-        component = 5125 if array.dtype == np.uint32 else 5126
-        record = {"bufferView": self.view(array.tobytes()), "componentType": component, "count": len(array),
-                  "type": kind}
-        if array.dtype != np.uint32:
-            record.update(min=array.min(0).reshape(-1).tolist(), max=array.max(0).reshape(-1).tolist())
-        self.accessors.append(record)
-        return len(self.accessors) - 1
+class _Glb(_Builder):
+    """test_gltf_io's buffer packer, with primitives and a document."""
 
     def primitive(self, positions: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None, material: int) -> dict:
         normals = np.zeros_like(positions)
@@ -75,7 +48,7 @@ class _Glb:
                 "material": material}
 
     def write(self, path: Path, doc: dict) -> Path:
-        images = [{"bufferView": self.view(_png(a)), "mimeType": "image/png"} for a in (COLOUR, ROUGH_METAL)]
+        images = [{"bufferView": self.view(png(a)), "mimeType": "image/png"} for a in (COLOUR, ROUGH_METAL)]
         doc = {"asset": {"version": "2.0"}, "scene": 0, "textures": [{"source": 0}, {"source": 1}],
                "images": images, **doc, "buffers": [{"byteLength": len(self.bin)}], "bufferViews": self.views,
                "accessors": self.accessors}
