@@ -5,7 +5,8 @@ node of its family's group (``FAMILIES``): the BSDF node Cycles' SVM has for the
 closure, scaled by the lobe weight with a Mix Shader, and the lobe's layering
 albedo at the view cosine from the fits of ``core.albedo_fits``. ``Layer(top, base)``
 becomes ``top + clamp(1 - max_c(albedo(top)), 0, 1) * base`` with Add and Mix
-Shader nodes. That is what Cycles' OSL ``layer()`` computes: one scalar weight
+Shader nodes. A lobe reports ``max_c`` of its albedo, ``w A max_c(c)``; the terms of
+one top share their colour, so their sum is the max of the summed colours. That is what Cycles' OSL ``layer()`` computes: one scalar weight
 that depends only on the view direction (brdf-notes section 1). ``Mix`` and ``Add``
 map to Mix and Add Shader.
 
@@ -165,23 +166,15 @@ def _polynomial(b: _Builder, fit: albedo_fits.AlbedoFit, mu: Value, y: Value) ->
     return total
 
 
-def _fresnel(b: _Builder, cos_i: Value, ior: Value) -> Socket:
-    """``albedo_fits.fresnel_dielectric`` in math nodes."""
-    g = b.math("SQRT", b.math("MULTIPLY_ADD", cos_i, cos_i, b.math("MULTIPLY_ADD", ior, ior, -1.0)))
-    a = b.math("DIVIDE", b.math("SUBTRACT", g, cos_i), b.math("ADD", g, cos_i))
-    c = b.math("DIVIDE", b.math("MULTIPLY_ADD", cos_i, b.math("ADD", g, cos_i), -1.0),
-               b.math("MULTIPLY_ADD", cos_i, b.math("SUBTRACT", g, cos_i), 1.0))
-    return b.math("MULTIPLY", b.math("MULTIPLY", 0.5, b.math("MULTIPLY", a, a)), b.math("MULTIPLY_ADD", c, c, 1.0))
-
-
 def _dielectric_albedo_fill(b: _Builder, i: Sockets) -> Sockets:
     alpha = b.clamp(i["Alpha"], ALPHA_MIN, 1.0)
     mu = i["Cosine"]
     widened = b.math("SQRT", b.math("MULTIPLY_ADD", mu, mu, b.math(
         "MULTIPLY", albedo_fits.MU_WIDEN, b.math("POWER", alpha, albedo_fits.MU_WIDEN_POWER))))
+    grazing = b.math("POWER", b.math("MAXIMUM", b.math("SUBTRACT", 1.0, widened), 0.0), albedo_fits.GRAZING_POWER)
     f0 = b.math("POWER", b.math("DIVIDE", b.math("SUBTRACT", i["IOR"], 1.0), b.math("ADD", i["IOR"], 1.0)), 2.0)
-    features = b.node("ShaderNodeCombineXYZ", "F(mu_eff), F0, 1")
-    b.feed(features.inputs[0], _fresnel(b, widened, i["IOR"]))
+    features = b.node("ShaderNodeCombineXYZ", "grazing, F0, 1")
+    b.feed(features.inputs[0], grazing)
     b.feed(features.inputs[1], f0)
     b.feed(features.inputs[2], 1.0)
     y = b.math("SQRT", alpha)
@@ -223,6 +216,12 @@ def _artistic_ior_fill(b: _Builder, i: Sockets) -> Sockets:
     return {"IOR": n, "Extinction": b.vector("POWER", b.vector("MAXIMUM", k2, (0.0, 0.0, 0.0)), (0.5, 0.5, 0.5))}
 
 
+def _strongest(b: _Builder, channels: bpy.types.Node, colour: Value) -> Socket:
+    """max_c of ``colour``, split by the Separate XYZ node ``channels``."""
+    b.feed(channels.inputs[0], colour)
+    return b.math("MAXIMUM", b.math("MAXIMUM", channels.outputs[0], channels.outputs[1]), channels.outputs[2])
+
+
 def _roughness(b: _Builder, alpha: Value) -> Socket:
     """The roughness r of a Blender BSDF node that squares it into GGX alpha = r^2."""
     return b.math("SQRT", b.clamp(alpha, ALPHA_MIN, 1.0))
@@ -234,8 +233,9 @@ def _sheen_fill(b: _Builder, i: Sockets) -> Sockets:
     b.feed(bsdf.inputs["Color"], i["Color"])
     b.feed(bsdf.inputs["Roughness"], i["Roughness"])
     fit = b.group(_sheen_albedo(), Cosine=i["Cosine"], Roughness=i["Roughness"])
+    strongest = _strongest(b, b.node("ShaderNodeSeparateXYZ"), i["Color"])
     return {"BSDF": b.weighted(bsdf.outputs[0], i["Weight"]),
-            "Albedo": b.vector("SCALE", i["Color"], b.math("MULTIPLY", i["Weight"], fit.outputs["Albedo"]))}
+            "Albedo": b.math("MULTIPLY", b.math("MULTIPLY", i["Weight"], strongest), fit.outputs["Albedo"])}
 
 
 def _specular(b: _Builder, i: Sockets) -> Socket:
@@ -258,7 +258,7 @@ def _tinted_dielectric_fill(b: _Builder, i: Sockets) -> Sockets:
     exact Fresnel in red and nothing elsewhere (k = 0, n = 1 is no interface), scaled by the tint's red."""
     fit = b.group(_dielectric_albedo(), Cosine=i["Cosine"], Alpha=i["Alpha"], IOR=i["IOR"])
     tint = b.node("ShaderNodeSeparateXYZ")
-    b.feed(tint.inputs[0], i["Tint"])
+    strongest = _strongest(b, tint, i["Tint"])
     roughness = _roughness(b, i["Alpha"])
     total: Socket | None = None
     for channel in range(3):
@@ -279,7 +279,7 @@ def _tinted_dielectric_fill(b: _Builder, i: Sockets) -> Sockets:
             total = add.outputs[0]
     assert total is not None
     return {"BSDF": b.weighted(total, i["Weight"]),
-            "Albedo": b.vector("SCALE", i["Tint"], b.math("MULTIPLY", i["Weight"], fit.outputs["Albedo"]))}
+            "Albedo": b.math("MULTIPLY", b.math("MULTIPLY", i["Weight"], strongest), fit.outputs["Albedo"])}
 
 
 def _conductor_fill(b: _Builder, i: Sockets) -> Sockets:
@@ -297,7 +297,7 @@ def _conductor_fill(b: _Builder, i: Sockets) -> Sockets:
 class Family:
     """A lobe family's node group: the graph inputs it takes (besides Cosine and Normal) and its inside.
 
-    ``layered`` families report the lobe's layering albedo (weight x colour x fit)
+    ``layered`` families report the lobe's layering albedo, max_c(weight x colour x fit),
     as a colour output, so the lobe can be a layer's top.
     """
 
@@ -309,7 +309,7 @@ class Family:
     def tree(self) -> bpy.types.NodeTree:
         inputs = [("Weight", "float"), *((_SOCKET_NAMES[k], kind) for k, kind in self.inputs),
                   ("Cosine", "float"), ("Normal", "normal")]
-        outputs = [("BSDF", "shader")] + ([("Albedo", "color")] if self.layered else [])
+        outputs = [("BSDF", "shader")] + ([("Albedo", "float")] if self.layered else [])
         return _group(f"richmat {self.name}", inputs, outputs, self.fill)
 
 
@@ -323,24 +323,21 @@ FAMILIES: dict[str, Family] = {f.name: f for f in (
 
 
 def family_of(lobe: graph.Lobe) -> Family:
-    """The family that renders ``lobe``: a dielectric with a tint other than white needs the Glossy stand-in."""
+    """The family that renders ``lobe``: a dielectric with a tint other than white needs one lobe per channel."""
     if lobe.closure == "dielectric" and lobe.inputs.get("tint", graph.WHITE) != graph.WHITE:
         return FAMILIES["tinted dielectric"]
     return FAMILIES[lobe.closure]
 
 
 def _layer_fill(b: _Builder, i: Sockets) -> Sockets:
-    channels = b.node("ShaderNodeSeparateXYZ")
-    b.feed(channels.inputs[0], i["Top Albedo"])
-    strongest = b.math("MAXIMUM", b.math("MAXIMUM", channels.outputs[0], channels.outputs[1]), channels.outputs[2])
     add = b.node("ShaderNodeAddShader")
     b.feed(add.inputs[0], i["Top"])
-    b.feed(add.inputs[1], b.weighted(i["Base"], b.math("SUBTRACT", 1.0, strongest, clamp=True)))
+    b.feed(add.inputs[1], b.weighted(i["Base"], b.math("SUBTRACT", 1.0, i["Top Albedo"], clamp=True)))
     return {"Shader": add.outputs[0]}
 
 
 def _layer() -> bpy.types.NodeTree:
-    return _group("richmat layer", [("Top", "shader"), ("Top Albedo", "color"), ("Base", "shader")],
+    return _group("richmat layer", [("Top", "shader"), ("Top Albedo", "float"), ("Base", "shader")],
                   [("Shader", "shader")], _layer_fill)
 
 
@@ -386,9 +383,12 @@ class _Walker:
                 b.feed(add.inputs[0], shader)
                 b.feed(add.inputs[1], term_shader)
                 shader = add.outputs[0]
-                albedo = b.vector("ADD", albedo, term_albedo) if albedo and term_albedo else None
+                albedo = b.math("ADD", albedo, term_albedo) if albedo and term_albedo else None
             return shader, albedo
         if isinstance(node, graph.Layer):
+            terms = node.top.terms if isinstance(node.top, graph.Add) else (node.top,)
+            if len({t.inputs.get("color", t.inputs.get("tint", graph.WHITE)) for t in terms}) > 1:
+                raise ValueError(f"the terms of a layer's top must share a colour: {node.top!r}")
             top, albedo = self.node(node.top)
             if albedo is None:
                 raise ValueError(f"a layer's top must report its albedo: {node.top!r}")

@@ -9,10 +9,11 @@ emulates that weight in math nodes, so it needs the albedos as formulas:
   per unit weight and white tint, of (mu, alpha, ior);
 - ``SHEEN``: Zeltner's sheen albedo R of (mu, roughness).
 
-Each fit is ``dot(features, P(mu, y))``: three features carry the shape (the
-exact Fresnel at a roughness-widened cosine, F0, an exponential for the sheen's
-grazing peak) and ``P`` is a small polynomial with 3-vector coefficients,
-which a node graph evaluates with a few Vector Math multiply-adds. The
+Each fit is ``dot(features, P(mu, y))``: three features carry the shape (a
+Schlick-like grazing rise at a roughness-widened cosine and F0; an exponential
+for the sheen's grazing peak) and ``P`` is a small polynomial with 3-vector
+coefficients, which a node graph evaluates with a few Vector Math multiply-adds.
+Every shading point evaluates them, so they are kept to a few math nodes each. The
 coefficients are fitted to the torch tables (which match Cycles') by
 ``tools/albedo_fits.py`` into ``albedo_fit_data.py``.
 
@@ -27,9 +28,9 @@ from .schema import ALPHA_MIN, SHEEN_ROUGHNESS_MIN
 
 Vector = tuple[float, float, float]
 
-# The dielectric's Fresnel feature reads the exact Fresnel at
+# The dielectric's grazing feature is max(1 - mu_eff, 0)^GRAZING_POWER at
 # mu_eff = sqrt(mu^2 + MU_WIDEN * alpha^MU_WIDEN_POWER): roughness smears the grazing rise.
-MU_WIDEN, MU_WIDEN_POWER = 1.0, 1.25
+MU_WIDEN, MU_WIDEN_POWER, GRAZING_POWER = 1.0, 1.0, 5.0
 # The sheen's feature exp(-mu / (SHEEN_PEAK * r^2 + SHEEN_PEAK_FLOOR)): low roughness only shows at grazing.
 SHEEN_PEAK, SHEEN_PEAK_FLOOR = 2.0, 1e-3
 
@@ -60,21 +61,13 @@ def polynomial(fit: AlbedoFit, mu: float, y: float) -> Vector:
     return total  # type: ignore[return-value]
 
 
-def fresnel_dielectric(cos_i: float, ior: float) -> float:
-    """Unpolarised Fresnel reflectance of a smooth dielectric (ior > 1)."""
-    g = math.sqrt(ior * ior - 1.0 + cos_i * cos_i)
-    a = (g - cos_i) / (g + cos_i)
-    b = (cos_i * (g + cos_i) - 1.0) / (cos_i * (g - cos_i) + 1.0)
-    return 0.5 * a * a * (1.0 + b * b)
-
-
 def f0(ior: float) -> float:
     return ((ior - 1.0) / (ior + 1.0)) ** 2
 
 
 def dielectric_features(mu: float, alpha: float, ior: float) -> Vector:
     widened = math.sqrt(mu * mu + MU_WIDEN * alpha ** MU_WIDEN_POWER)
-    return fresnel_dielectric(widened, ior), f0(ior), 1.0
+    return max(1.0 - widened, 0.0) ** GRAZING_POWER, f0(ior), 1.0
 
 
 def sheen_features(mu: float, roughness: float) -> Vector:
