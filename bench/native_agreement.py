@@ -5,8 +5,8 @@ bench/agreement_cases.py are rendered on the preview ball by one Blender child
 process (bench/native_agreement_cycles.py), once with Cycles reading the OSL
 Script node (OSL shading) and once reading the native group (SVM), same scene,
 same samples, one thread. Both are tone mapped with AgX and compared with
-LDR-FLIP. Each graph renders two frames: the first pays for the sync and the
-shader compilation, the second is the per-frame cost.
+LDR-FLIP. Each graph renders a few frames: the first pays for the sync and the
+shader compilation, the fastest of the others is the per-frame cost.
 
     python -m bench.native_agreement [--per-type N] [--seed N] [--out FILE.json]
 
@@ -27,13 +27,14 @@ import numpy as np
 
 from bench.agreement_cases import Case, cases
 from bench.common import FLIP_CONVENTION, REPO, add_out_argument, pyplot, run_python, save_chart, write_report
+from bench.native_agreement_cycles import CPU_CONFIGS, FRAMES
 from richmat_addon.core.folder_io import read_exr
 from torch_models.render.flip import flip_map
 from torch_models.render.tonemap import agx
 
 TARGET_MEAN, TARGET_WORST = 0.03, 0.06
 DEFAULT_PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
-GRAPHS = ("osl", "native")
+GRAPHS = tuple(c["label"] for c in CPU_CONFIGS)
 
 
 def render(all_cases: list[Case], args: argparse.Namespace, folder: Path) -> dict:
@@ -103,17 +104,21 @@ def chart(report: dict, path: Path) -> None:
     save_chart(fig, path)
 
 
-def labelled_sheet(images: list[tuple[str, float, np.ndarray, np.ndarray, np.ndarray]], path: Path) -> None:
-    """One row per case: OSL | native | FLIP map, the case and its FLIP as the row's label."""
+def labelled_sheet(rows: list[tuple[str, list[tuple[str, np.ndarray]]]], path: Path) -> None:
+    """One row per case, its label on the left; one titled column per image (an (H, W) one is a FLIP map)."""
     plt = pyplot()
-    fig, axes = plt.subplots(len(images), 3, figsize=(6, 2.1 * len(images)), squeeze=False)
-    for row, (name, flip, osl, native, error) in zip(axes, images):
-        for ax, image, title in zip(row, (osl, native, error), ("OSL", "native", "FLIP")):
+    columns = max(len(images) for _, images in rows)
+    fig, axes = plt.subplots(len(rows), columns, figsize=(2 * columns, 2.1 * len(rows)), squeeze=False)
+    for row, (label, images) in zip(axes, rows):
+        for ax in row:
+            ax.set_axis_off()
+        for ax, (title, image) in zip(row, images):
+            ax.set_axis_on()
             ax.imshow(np.clip(image, 0, 1), cmap="magma" if image.ndim == 2 else None, vmin=0, vmax=1)
             ax.set_xticks([])
             ax.set_yticks([])
             ax.set_title(title, fontsize=8)
-        row[0].set_ylabel(f"{name}\nFLIP {flip:.4f}", fontsize=7)
+        row[0].set_ylabel(label, fontsize=7)
     save_chart(fig, path)
 
 
@@ -138,11 +143,11 @@ def main() -> None:
         print(f"Cycles: {len(all_cases)} cases x {GRAPHS} at {args.resolution} px, {args.samples} spp ...", flush=True)
         times = render(all_cases, args, folder)
         for case in all_cases:
-            osl, native = (agx(read_exr(folder / f"{case.name}_{g}_0002.exr")[..., :3]) for g in GRAPHS)
+            osl, native = (agx(read_exr(folder / f"{case.name}_{g}_{FRAMES:04d}.exr")[..., :3]) for g in GRAPHS)
             error, flip = flip_map(osl, native)
             rows.append({"name": case.name, "node": case.node, "group": group_of(case), "flip": flip,
                          "seconds": times[case.name], "params": case.params, "base_color": case.base_color})
-            images.append((case.name, flip, osl, native, error))
+            images.append((f"{case.name}\nFLIP {flip:.4f}", [("OSL", osl), ("native", native), ("FLIP", error)]))
             print(f"{case.name:28s} FLIP {flip:.4f}  CPU s per frame: OSL {times[case.name]['osl']['frame'][1]:.2f}, "
                   f"native {times[case.name]['native']['frame'][1]:.2f}", flush=True)
     overall = summary(rows)

@@ -1,17 +1,23 @@
-"""Blender side of bench/native_agreement.py: every case in Cycles, as OSL and as the native node graph.
+"""Blender side of bench/native_agreement.py and bench/native_gpu.py: every case in every configuration.
 
-Run by bench/native_agreement.py in a child process with the pip bpy module:
+Run in a child process with the pip bpy module:
     python -m bench.native_agreement_cycles JOB.json
-JOB.json holds {"cases": [...], "probe", "resolution", "samples", "seed", "out"}; writes
-OUT/<case>_<graph>_0002.exr and OUT/times.json ({case: {graph: {"first": [wall, cpu],
-"frame": [wall, cpu]}}}, seconds).
+JOB.json holds {"cases": [...], "probe", "resolution", "samples", "seed", "out"} and,
+optionally, "configs" (default ``CPU_CONFIGS``: Cycles on the CPU reading the OSL
+graph, then the native one) and "control" (also render a plain Principled BSDF
+ball, which tells a compiled EEVEE shader from EEVEE's fallback). Writes
+OUT/<case>_<label>_<frame>.exr and OUT/times.json ({case: {label: {"first": [wall, cpu],
+"frame": [wall, cpu]}}}, seconds; a configuration whose device is missing is left out).
 
 One preview scene, one render thread. Each case's material carries both graphs,
-as an uplifted one does; Cycles reads one of them and shades with OSL or SVM to
-match. Each graph renders two frames with persistent data, as the farm renders an
-orbit: the first one pays for the scene sync and the shader compilation, the
-second is the per-frame cost. CPU seconds are the process's: on a shared machine
-they move less than wall seconds.
+as an uplifted one does; Cycles reads the configuration's graph and shades with
+OSL or SVM to match, EEVEE reads the native graph. Each configuration renders ``FRAMES``
+frames with persistent data, as the farm renders an orbit: the first one pays for
+the scene sync and the shader compilation, the fastest of the others is the
+per-frame cost (the least disturbed by other jobs on a shared machine). CPU
+seconds are the process's: there they move less than wall seconds.
+
+The main processes import this module's constants, so bpy is imported inside.
 """
 from __future__ import annotations
 
@@ -19,29 +25,62 @@ import json
 import sys
 import time
 from pathlib import Path
-
-import bpy
+from typing import TYPE_CHECKING
 
 from bench.agreement_cases import Case
-from richmat_addon.blender import cycles_builder, preview_scene
-from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
 from richmat_addon.core.preview import PreviewScene
+
+if TYPE_CHECKING:
+    import bpy
+
+# label, render engine, device ("CPU" or a Cycles compute device type; EEVEE ignores it), graph Cycles reads.
+CPU_CONFIGS = [{"label": g, "engine": "CYCLES", "device": "CPU", "graph": g} for g in ("osl", "native")]
+CONTROL = "control"  # the plain Principled BSDF ball's case name
+FRAMES = 3
+
+
+def use(scene: bpy.types.Scene, config: dict) -> bool:
+    """Set the scene up for ``config``; False when its device is missing."""
+    import bpy
+
+    scene.render.engine = config["engine"]
+    if config["engine"] != "CYCLES":
+        scene.eevee.taa_render_samples = scene.cycles.samples
+        return True
+    scene.cycles.shading_system = config["graph"] == "osl"
+    scene.cycles.device = "CPU" if config["device"] == "CPU" else "GPU"
+    if config["device"] == "CPU":
+        return True
+    prefs = bpy.context.preferences.addons["cycles"].preferences
+    try:
+        prefs.compute_device_type = config["device"]
+    except TypeError:  # not a device type this build knows
+        return False
+    prefs.get_devices()
+    for device in prefs.devices:
+        device.use = device.type == config["device"]
+    return any(device.use for device in prefs.devices)
 
 
 def main(job_path: Path) -> None:
+    import bpy
+
+    from richmat_addon.blender import cycles_builder, preview_scene
+    from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
+
     prefer_blender_bundled_modules()
     job = json.loads(job_path.read_text())
     out = Path(job["out"])
+    configs = job.get("configs", CPU_CONFIGS)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    cycles_builder.enable_osl(scene)
     preview_scene.setup(scene, PreviewScene(resolution=job["resolution"]), Path(job["probe"]), None,
                         job["samples"], job["seed"])
     scene.render.threads_mode, scene.render.threads = "FIXED", 1
     scene.render.use_persistent_data = True
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.image_settings.color_depth = "32"
-    scene.frame_start, scene.frame_end = 1, 2
+    scene.frame_start, scene.frame_end = 1, FRAMES
     ball = bpy.data.node_groups[preview_scene.BALL].nodes["Set Material"].inputs["Material"]
     stamps: list[tuple[float, float]] = []
 
@@ -50,20 +89,25 @@ def main(job_path: Path) -> None:
 
     bpy.app.handlers.render_pre.append(stamp)
     bpy.app.handlers.render_post.append(stamp)
+    cases = [Case(**spec) for spec in job["cases"]]
+    materials = [(c.name, cycles_builder.build_material(c.material(), {}, c.name, node=c.graph_node())) for c in cases]
+    if job.get("control"):
+        materials.append((CONTROL, bpy.data.materials.new(CONTROL)))
     times: dict[str, dict[str, dict[str, list[float]]]] = {}
-    for spec in job["cases"]:
-        case = Case(**spec)
-        material = cycles_builder.build_material(case.material(), {}, case.name, node=case.graph_node())
+    for name, material in materials:
         ball.default_value = material
-        for which in cycles_builder.GRAPHS:
-            scene.cycles.shading_system = which == "osl"
-            cycles_builder.use_in_cycles(material, which)
-            scene.render.filepath = str(out / f"{case.name}_{which}_")
+        for config in configs:
+            if not use(scene, config):
+                continue
+            if cycles_builder.cycles_graph(material) is not None:
+                cycles_builder.use_in_cycles(material, config["graph"])
+            scene.render.filepath = str(out / f"{name}_{config['label']}_")
             stamps.clear()
             bpy.ops.render.render(animation=True)
-            first, frame = ([end - start for start, end in zip(stamps[i], stamps[i + 1])] for i in (0, 2))
-            times.setdefault(case.name, {})[which] = {"first": first, "frame": frame}
-        print(f"{case.name}: " + ", ".join(f"{g} {t['frame'][1]:.2f} s" for g, t in times[case.name].items()),
+            seconds = [[end - start for start, end in zip(stamps[i], stamps[i + 1])] for i in range(0, len(stamps), 2)]
+            times.setdefault(name, {})[config["label"]] = {"first": seconds[0],
+                                                           "frame": [min(column) for column in zip(*seconds[1:])]}
+        print(f"{name}: " + ", ".join(f"{label} {t['frame'][1]:.2f} s" for label, t in times[name].items()),
               flush=True)
     (out / "times.json").write_text(json.dumps(times, indent=1))
 
