@@ -59,15 +59,25 @@ latents = sorted(n.image.name for n in enhanced.node_tree.nodes if n.name.starts
 scene.richmat.prompt = "red paint"
 generate_polls = bpy.ops.richmat.generate_material.poll()
 generate = run_op("generate_material")
+scene.render.engine, scene.cycles.shading_system = "CYCLES", True  # the neural preview is an OSL shader
 steps["preview"] = run_op("preview_neural")
-preview_material = obj.active_material.name
+preview = obj.active_material
+preview_material = preview.name
 obj.scale *= 2.5 / max(obj.dimensions)  # fills the helper's camera view
 pixels = render(24, 4)
+def cycles_reads():
+    return preview.node_tree.nodes["richmat_output"].inputs["Surface"].links[0].from_node.bl_idname
+graphs = [cycles_reads()]
+scene.cycles.shading_system = False  # OSL off: the add-on's handler must not leave a black material
+bpy.context.view_layer.update()
+graphs.append(cycles_reads())
+fallback = render(24, 4)
 steps["export"] = run_op("export_materialx", directory=OUT + "/mtlx")
 print("RESULT " + json.dumps(dict(
     steps={k: [sorted(v[0]), v[1]] for k, v in steps.items()}, neural_dir=neural_dir, bake_dir=bake_dir,
     latents=latents, generate_polls=generate_polls, generate=[sorted(generate[0]), generate[1]],
     preview_material=preview_material, finite=bool(np.isfinite(pixels).all()), mean=float(pixels.mean()),
+    graphs=graphs, fallback_mean=float(fallback.mean()),
     torch_imported="torch" in sys.modules, torch_found=importlib.util.find_spec("torch") is not None)))
 '''
 
@@ -97,5 +107,9 @@ def test_stock_blender_fits_with_the_numpy_encoder_and_previews(shared_assets: P
     assert latents.shape == (*vectors.shape, 6)
     np.testing.assert_allclose(latents, expected, rtol=0, atol=1e-3)  # half-float EXRs
     assert result["preview_material"].endswith("(richmat neural)") and result["finite"] and result["mean"] > 0
+    # Cycles with OSL runs the decoder; without OSL it renders the baked material's native nodes, not black.
+    assert result["graphs"] == ["ShaderNodeScript", "ShaderNodeGroup"]
+    # (the neural lobe is lit by the world only, the native graph by the area light too: means differ)
+    assert result["fallback_mean"] > 0.001
     mtlx = sorted((tmp_path / "mtlx").glob("*/material.mtlx"))
     assert mtlx and all((m.parent / "params.json").is_file() for m in mtlx)

@@ -44,6 +44,7 @@ from .osl_env import prefer_blender_bundled_modules
 Graph = Literal["osl", "native"]
 GRAPHS: tuple[Graph, ...] = ("osl", "native")
 SCRIPT_NODE = "richmat_osl"
+NEURAL_SCRIPT_NODE = "richmat_neural_osl"  # the neural preview's Script node, which has the same native fallback
 NATIVE_NODE = native_builder.NODE
 OUTPUT_NODE = "richmat_output"
 EEVEE_OUTPUT_NODE = "richmat_output_eevee"
@@ -312,17 +313,24 @@ def constant_sockets(material: bpy.types.Material | None) -> dict[schema.Param, 
             if n.name.startswith("const_") and n.name[len("const_"):] in schema.PARAM_BY_NAME}
 
 
+def _script_node_of(material: bpy.types.Material) -> bpy.types.Node | None:
+    nodes = material.node_tree.nodes if material.node_tree else {}
+    return next((nodes[n] for n in (SCRIPT_NODE, NEURAL_SCRIPT_NODE) if n in nodes), None)
+
+
 def use_in_cycles(material: bpy.types.Material, which: Graph) -> None:
-    """Feed the Cycles output from the OSL Script node or the native group; both stay in the tree."""
+    """Feed the Cycles output from the OSL Script node (enhanced or neural) or the native group;
+    both stay in the tree."""
     tree = material.node_tree
-    source = tree.nodes[SCRIPT_NODE if which == "osl" else NATIVE_NODE]
+    source = _script_node_of(material) if which == "osl" else tree.nodes[NATIVE_NODE]
     tree.links.new(source.outputs[0], tree.nodes[OUTPUT_NODE].inputs["Surface"])
 
 
 def cycles_graph(material: bpy.types.Material) -> Graph | None:
     """Which graph the Cycles output reads, None for a material without both."""
     nodes = material.node_tree.nodes if material.node_tree else {}
-    if SCRIPT_NODE not in nodes or NATIVE_NODE not in nodes or OUTPUT_NODE not in nodes:
+    script = _script_node_of(material)
+    if script is None or NATIVE_NODE not in nodes or OUTPUT_NODE not in nodes:
         return None
     links = nodes[OUTPUT_NODE].inputs["Surface"].links
-    return "osl" if links and links[0].from_node.name == SCRIPT_NODE else "native"
+    return "osl" if links and links[0].from_node == script else "native"

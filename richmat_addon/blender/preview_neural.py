@@ -5,8 +5,9 @@ normal and UV chains) around a Script node whose OSL source
 ``core.neural_osl`` generates from the decoder weights the latents were fitted
 against. Its neural lobe is lit by the scene's world (an Environment Texture,
 or the Background colour); the diffuse base ``T c`` by everything (docs/addon.md).
-OSL runs in Cycles on the CPU and OptiX only: the material's other output (target
-All) holds the baked enhanced material's native graph, which EEVEE renders.
+OSL runs in Cycles on the CPU and OptiX only: the material also holds the baked
+enhanced material's native graph, which EEVEE renders, and which Cycles renders
+where it cannot run OSL (the add-on's handler switches it, as for enhanced ones).
 """
 from __future__ import annotations
 
@@ -21,11 +22,12 @@ from ..core.neural_osl import neural_osl_source
 from ..core.neural_encoder import WEIGHTS_FILE
 from ..core.tensor_file import read_safetensors
 from . import cycles_builder, neural_assets, uplift
-from .cycles_builder import COLOR_SPACE_COLOR, COLOR_SPACE_DATA, OSL_SETTINGS, compile_script_node
+from .cycles_builder import (COLOR_SPACE_COLOR, COLOR_SPACE_DATA, EEVEE_OUTPUT_NODE, OSL_SETTINGS, OUTPUT_NODE,
+                             compile_script_node)
 from .osl_env import prefer_blender_bundled_modules
 from .pbr_source import InputProblem
 
-SCRIPT_NODE = "richmat_neural_osl"
+SCRIPT_NODE = cycles_builder.NEURAL_SCRIPT_NODE
 SUFFIX = " (richmat neural)"
 SAMPLES = 8  # directions per shading point for the neural lobe's world lighting
 
@@ -71,17 +73,23 @@ def _image(tree: bpy.types.NodeTree, name: str, file: Path, color: bool, row: in
 
 def add_neural_nodes(material: bpy.types.Material, text: bpy.types.Text, baked: material_folder.MaterialFolder,
                      neural: neural_folder.NeuralFolder, scene: bpy.types.Scene) -> list[bpy.types.Node]:
-    """Script node, latent/base/energy textures or constants and the Cycles output; the baked
-    material's native graph on an output for every other engine. Returns the nodes taking the normal."""
-    prefer_blender_bundled_modules()  # assigning the script runs Cycles' update, which imports oslquery
+    """Script node, latent/base/energy textures or constants, and the baked material's native graph
+    on the EEVEE output; Cycles reads the Script node where it runs OSL, the native graph elsewhere.
+    Returns the nodes taking the normal."""
+    fallback = cycles_builder.add_enhanced_nodes(material, baked.material(), {
+        name: str(path) for name, path in baked.texture_paths.items()}, graphs=("native",))
     tree = material.node_tree
+    eevee = tree.nodes[OUTPUT_NODE]
+    eevee.name, eevee.target = EEVEE_OUTPUT_NODE, "EEVEE"
+    prefer_blender_bundled_modules()  # assigning the script runs Cycles' update, which imports oslquery
     script = tree.nodes.new("ShaderNodeScript")
     script.name, script.label = SCRIPT_NODE, "richmat neural preview (OSL)"
     script.mode, script.script, script.width = "INTERNAL", text, 240
+    script.location = (0.0, 500.0)
     compile_script_node(script)
     output = tree.nodes.new("ShaderNodeOutputMaterial")
-    output.target, output.location = "CYCLES", (400.0, 0.0)
-    tree.links.new(script.outputs["BSDF"], output.inputs["Surface"])
+    output.name, output.target, output.location = OUTPUT_NODE, "CYCLES", (500.0, 300.0)
+    cycles_builder.use_in_cycles(material, "osl" if cycles_builder.osl_runs(scene) else "native")
 
     if neural.latent is not None:  # a constant material: one latent vector
         script.inputs["latent_0"].default_value = neural.latent[:3]
@@ -107,8 +115,6 @@ def add_neural_nodes(material: bpy.types.Material, text: bpy.types.Text, baked: 
     script.inputs["probe_rotation"].default_value = rotation
     script.inputs["world_color"].default_value = (*color, 1.0)
     script.inputs["samples"].default_value = SAMPLES
-    fallback = cycles_builder.add_enhanced_nodes(material, baked.material(), {
-        name: str(path) for name, path in baked.texture_paths.items()}, graphs=("native",))
     return [script, *fallback]
 
 
