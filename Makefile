@@ -21,8 +21,9 @@ $(STAMP): pyproject.toml
 test: $(STAMP)
 	$(PY) -m pytest -q
 
+# make demo FULL=1: the larger version (256 px textures, 64 samples per pixel, 300 fit steps)
 demo: $(STAMP)
-	$(PY) -m torch_models demo --out demo_out
+	$(PY) -m torch_models demo --out demo_out $(if $(FULL),--full)
 
 # The installable Blender extension: the manifest, the add-on modules richmat_addon/__init__.py imports
 # (tools/extension_files.py) and the shipped decoder, built by Blender's own extension CLI (shipped

@@ -1,125 +1,225 @@
-"""Uplift the built-in material to every type and show them beside the original.
+"""Uplift the built-in material to every type, fit each as a neural material, generate from prompts.
 
 The built-in input is procedural (chipped red paint over steel on a UV sphere,
 see richmat_addon/core/builtin.py), so the demo needs nothing beside the clone.
 Writes OUT/type_<k>/ (parameter maps as EXR, params.json, material.mtlx) for
 Types 0-5, and OUT/side_by_side.png: the original PBR material and Types 0-5
-rendered on a ball under the shipped probe with the torch renderer. Then each
-type is fitted as a neural material with the shipped decoder
-(OUT/type_<k>/neural/: two latent EXRs and neural.json) and
-OUT/neural_vs_analytic.png shows analytic | neural | FLIP map per type, with
-the FLIPs in OUT/neural_vs_analytic.json. Last, the shipped generator makes
-neural materials for a held-out procedural mesh from prompts naming different
-enhancements (OUT/generated.png: one row of two preview frames per prompt,
-OUT/generated.json: the prompts, types, warnings and timings).
+rendered on a ball under the shipped probe with the torch renderer. Then the
+six types are fitted as neural materials with the shipped decoder (one fit of
+all their distinct texel vectors; OUT/type_<k>/neural/: two latent EXRs and
+neural.json) and OUT/neural_vs_analytic.png shows analytic | neural | FLIP map
+per type, with the FLIPs in OUT/neural_vs_analytic.json. Last, the shipped
+generator makes neural materials for a held-out procedural mesh from prompts
+naming different enhancements (OUT/generated.png: per prompt its text, its
+type and two views; OUT/generated.json: the prompts, types, warnings, timings).
+
+The default sizes finish in about two minutes on 2 cores; --full runs the
+larger version (a 256 px texture, 64 samples per pixel, 300 fit steps, the
+full energy refit), about ten times longer.
 """
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-HELP = "uplift the built-in material to Types 0-5 and render them side by side"
+if TYPE_CHECKING:
+    from richmat_addon.core.texel_vectors import TexelVectors
+
+HELP = "uplift the built-in material to Types 0-5, fit them as neural materials, generate from prompts"
 DEFAULT_PROBE = Path(__file__).resolve().parent / "data" / "studio_small_03_512.hdr"
+
+# Sizes of the default demo and of --full. The texture size, samples and steps cost time
+# without changing what the 160 px pictures show (docs in the README's demo lines).
+QUICK = {"size": 128, "spp": 32, "fit_steps": 100, "refit_steps": 20, "merge": 16, "generate_size": 16}
+FULL = {"size": 256, "spp": 64, "fit_steps": 300, "refit_steps": 150, "merge": 0, "generate_size": 32}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    def sizes(key: str) -> str:
+        return f"(default: {QUICK[key]}; --full: {FULL[key]})"
+
     parser.add_argument("--out", type=Path, default=Path("demo_out"), help="output folder (default: demo_out)")
+    parser.add_argument("--full", action="store_true", help="the larger version: the --full sizes below")
     parser.add_argument("--seed", type=int, default=0, help="enhancement seed (default: 0)")
-    parser.add_argument("--size", type=int, default=256, help="texture size of the built-in material (default: 256)")
+    parser.add_argument("--size", type=int, help=f"texture size of the built-in material {sizes('size')}")
     parser.add_argument("--resolution", type=int, default=160, help="ball image size in pixels (default: 160)")
-    parser.add_argument("--spp", type=int, default=64, help="samples per pixel of the ball renders (default: 64)")
+    parser.add_argument("--spp", type=int, help=f"samples per pixel of the ball renders {sizes('spp')}")
     parser.add_argument("--probe", type=Path, default=DEFAULT_PROBE, help="equirectangular HDR probe")
-    parser.add_argument("--fit-steps", type=int, default=300, help="neural fit steps per type (default: 300)")
+    parser.add_argument("--fit-steps", type=int, help=f"neural fit steps {sizes('fit_steps')}")
+    parser.add_argument("--refit-steps", type=int,
+                        help=f"energy refit steps of the latents that gain energy {sizes('refit_steps')}")
+    parser.add_argument("--merge", type=int,
+                        help="texel vectors that round to the same multiple of 1/MERGE per normalised parameter "
+                             f"share one fitted latent; 0: only fit's own merge {sizes('merge')}")
     parser.add_argument("--no-neural", action="store_true", help="skip fitting the neural materials")
     parser.add_argument("--no-generate", action="store_true", help="skip generating materials from prompts")
-    parser.add_argument("--generate-size", type=int, default=32,
-                        help="latent texture size of the generated materials (default: 32, what the generator's "
-                             "32 px views resolve; the energy guard's time grows with the texels)")
+    parser.add_argument("--generate-size", type=int,
+                        help="latent texture size of the generated materials; the energy guard's time grows with "
+                             f"its texels {sizes('generate_size')}")
+    parser.add_argument("--view-size", type=int, default=256, help="generated.png's view size in pixels (default: 256)")
+
+
+def apply_sizes(args: argparse.Namespace) -> None:
+    """The default or --full size of every size argument not given."""
+    for key, value in (FULL if args.full else QUICK).items():
+        if getattr(args, key) is None:
+            setattr(args, key, value)
 
 
 def run(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from richmat_addon.core import material_folder
     from richmat_addon.core.builtin import chipped_paint, sphere_texel_geometry
-    from richmat_addon.core.enhance import enhance
+    from richmat_addon.core.enhance import baseline, enhance
     from richmat_addon.core.enhancement_types import TYPES
 
     from .cli import InputError
-    from .demo_render import render_side_by_side
+    from .demo_render import analytic_at, captioned_row, render_balls, save_sheet, to_u8
 
+    apply_sizes(args)
     if args.generate_size < 8:
         raise InputError("--generate-size must be >= 8")
+    progress = Progress(expected_seconds(args))
+    progress.start("enhance")
     pbr = chipped_paint(args.size)
     normals, positions = sphere_texel_geometry(args.size, args.size)
     materials = []
-    for type_ in tqdm(range(len(TYPES)), desc="enhance", unit="type"):
+    for type_ in range(len(TYPES)):
         mat = enhance(pbr, type_, args.seed, world_normals=normals, world_positions=positions)
         material_folder.write(args.out / f"type_{type_}", mat,
                               {"asset": "built-in chipped_paint", "material": pbr.name, "requested_type": type_})
         materials.append(mat)
-    image = render_side_by_side(pbr, materials, args.probe, args.resolution, args.spp, args.seed,
-                                args.out / "side_by_side.png")
-    print(f"wrote {args.out}/type_0..5 and {image}")
+        progress.advance(1 / len(TYPES))
+    progress.start("render Types 0-5")
+    balls = render_balls([analytic_at(m) for m in [baseline(pbr)] + materials], args.probe, args.resolution,
+                         args.spp, args.seed, lambda: progress.advance(1 / (len(materials) + 1)))
+    labels = ["original PBR"] + [f"Type {m.type}: {TYPES[m.type].label}" for m in materials]
+    png = save_sheet([captioned_row([to_u8(b) for b in balls], labels)], args.out / "side_by_side.png")
+    progress.write(f"wrote {args.out}/type_0..5 and {png}")
     if not args.no_neural:
-        fit_and_compare(args, materials)
+        fit_and_compare(args, materials, balls[1:], progress)
     if not args.no_generate:
-        generate_from_prompts(args.out, args.seed, args.generate_size)
+        generate_from_prompts(args.out, args.seed, args.generate_size, args.view_size, progress)
+    progress.close()
     return 0
 
 
-def fit_and_compare(args: argparse.Namespace, materials: list) -> None:  # type: ignore[type-arg]
-    """Fit every type with the shipped decoder, write its latents, render analytic vs neural."""
-    import json
+def fit_and_compare(args: argparse.Namespace, materials: list, analytic: list,  # type: ignore[type-arg]
+                    progress: Progress) -> None:
+    """Fit the six types as neural materials with the shipped decoder, write their latents, compare
+    each with its analytic ball (``analytic``: the renders of side_by_side.png, same settings).
 
-    from tqdm import tqdm
-
-    from richmat_addon.core.maps import ParamMap
-
-    from .demo_render import neural_bsdf, render_neural_rows
-    from .neural import energy, fitting, material_vectors, weights
-
-    model = weights.load()
-    rows = []
-    for mat in tqdm(materials, desc="fit neural", unit="type"):
-        folder = args.out / f"type_{mat.type}"
-        vectors = material_vectors.read_vectors(folder)
-        z = fitting.fit_latents(model, vectors.unique, args.fit_steps, seed=args.seed)
-        bounded = energy.fit_bounded(model, vectors.unique, z, seed=args.seed)
-        z, check = bounded.z, bounded.check
-        material_vectors.write_fit(folder / "neural", vectors, bounded, model.digest, {})
-        latents = ParamMap(vectors.texels(z))
-        scales = ParamMap(vectors.texels(check.energy_scale()))
-        rows.append((f"Type {mat.type}", mat, lambda n, m=mat, lt=latents, sc=scales:
-                     neural_bsdf(model, lt, sc, m.base_color, n)))
-    png = args.out / "neural_vs_analytic.png"
-    flips = render_neural_rows(rows, args.probe, args.resolution, args.spp, args.seed, png)
-    (args.out / "neural_vs_analytic.json").write_text(json.dumps(
-        {"flip_convention": "LDR-FLIP on AgX sRGB, 67.02 ppd", "fit_steps": args.fit_steps,
-         "flip": {f"type_{m.type}": f for m, f in zip(materials, flips)}}, indent=1))
-    print("neural vs analytic FLIP: " + ", ".join(f"Type {m.type} {f:.3f}" for m, f in zip(materials, flips))
-          + f"; wrote {png}")
-
-
-DEMO_PROMPT_ENDINGS = ("heavy haze, heavy dust", "light haze, glossy clearcoat",
-                       "moderate haze, heavy fuzz, light subsurface scattering")
-
-
-def generate_from_prompts(out: Path, seed: int, texture_size: int = 32) -> None:
-    """The paper's Fig. 8 on a mesh training never saw: one object, prompts naming different enhancements.
-
-    Two small preview frames per prompt and a ``texture_size`` texture keep this step to a few minutes
-    on 2 cores; the energy guard, which measures every distinct texel, takes most of it."""
+    One fit takes every distinct texel vector of the six types, as ``fit`` does for one textured
+    material: a fit step costs the same for any number of vectors, so one fit of all costs a
+    sixth of six, and the energy refit's per-step cost is bounded by its latent sample the same way."""
     import json
 
     import numpy as np
     import torch
 
+    from richmat_addon.core.enhancement_types import TYPES
+    from richmat_addon.core.maps import ParamMap
+
+    from .demo_render import captioned_row, neural_bsdf, render_balls, save_sheet, to_u8
+    from .neural import energy, fitting, material_vectors, weights
+    from .neural.evaluate import compare
+
+    model = weights.load()
+    folders = [args.out / f"type_{m.type}" for m in materials]
+    vectors = [material_vectors.read_vectors(f) for f in folders]
+    if args.merge:
+        vectors = [merge_vectors(v, 1.0 / args.merge) for v in vectors]
+    pool, rows = np.unique(np.concatenate([v.unique for v in vectors]), axis=0, return_inverse=True)
+    per_type = np.split(rows.ravel(), np.cumsum([len(v.unique) for v in vectors])[:-1])
+    progress.reweigh("energy guard", expected_seconds(args, len(pool))["energy guard"])
+    progress.start("fit neural materials")
+    progress.write(f"fitting the {len(pool)} distinct texel vectors of Types 0-5 with the shipped decoder")
+    z = fitting.fit_latents(model, pool, args.fit_steps, seed=args.seed,
+                            progress=lambda *_: progress.advance(1 / args.fit_steps))
+    progress.start("energy guard")
+    bounded = energy.fit_bounded(model, pool, z, seed=args.seed, steps=args.refit_steps)
+    progress.advance(1.0)
+    progress.start("render neural vs analytic")
+    record = {"fitted_with": "the distinct texel vectors of the demo's six types, in one fit"}
+    if args.merge:
+        record["cluster_bound"] = (f"texels whose vectors round to the same multiple of 1/{args.merge} "
+                                   "per normalised parameter share one latent")
+    neural = []
+    for mat, mv, index, folder in zip(materials, vectors, per_type, folders):
+        part = _select(bounded, torch.from_numpy(index))
+        material_vectors.write_fit(folder / "neural", mv, part, model.digest, record)
+        latents, scales = ParamMap(mv.texels(part.z)), ParamMap(mv.texels(part.check.energy_scale()))
+        neural.append(lambda n, m=mat, lt=latents, sc=scales: neural_bsdf(model, lt, sc, m.base_color, n.numpy()))
+    renders = render_balls(neural, args.probe, args.resolution, args.spp, args.seed,
+                           lambda: progress.advance(1 / len(neural)))
+    results = [compare(a, n) for a, n in zip(analytic, renders)]
+    png = save_sheet([captioned_row([to_u8(r.reference), to_u8(r.neural), to_u8(np.repeat(r.error[..., None], 3, -1))],
+                                    [f"Type {m.type} {TYPES[m.type].label}: analytic", "neural",
+                                     f"FLIP map, mean {r.flip:.3f}"])
+                      for m, r in zip(materials, results)], args.out / "neural_vs_analytic.png")
+    (args.out / "neural_vs_analytic.json").write_text(json.dumps(
+        {"flip_convention": "LDR-FLIP on AgX sRGB, 67.02 ppd", "texture_size": args.size, "spp": args.spp,
+         "merge": args.merge, "fit_steps": args.fit_steps, "refit_steps": args.refit_steps,
+         "fitted_vectors": len(pool),
+         "flip": {f"type_{m.type}": r.flip for m, r in zip(materials, results)}}, indent=1))
+    progress.write("neural vs analytic FLIP: " + ", ".join(f"Type {m.type} {r.flip:.3f}"
+                                                           for m, r in zip(materials, results)) + f"; wrote {png}")
+
+
+def merge_vectors(mv: TexelVectors, step: float) -> TexelVectors:
+    """``mv`` with its representatives merged again where they round to the same multiple of ``step``
+    in the normalised parameter space (a texel-weighted mean per cell): the demo's fit then takes as
+    many vectors as the pictures tell apart, not the thousands of dust amounts ``QUANT`` keeps apart."""
+    import numpy as np
+
+    from richmat_addon.core.texel_vectors import normalise
+
+    if mv.shape is None:  # a constant material is one vector already
+        return mv
+    _, cell = np.unique(np.round(normalise(mv.unique) / step).astype(np.int64), axis=0, return_inverse=True)
+    cell = cell.ravel()
+    texels = np.bincount(mv.inverse, minlength=len(mv.unique)).astype(np.float64)
+    sums = np.zeros((cell.max() + 1, mv.unique.shape[1]))
+    np.add.at(sums, cell, mv.unique * texels[:, None])
+    merged = (sums / np.bincount(cell, weights=texels)[:, None]).astype(np.float32)
+    return replace(mv, unique=merged, inverse=cell[mv.inverse])
+
+
+def _select(bounded, rows):  # type: ignore[no-untyped-def]
+    """The latents ``rows`` of a BoundedFit, with their furnace check."""
+    from .neural.energy import BoundedFit, Furnace
+
+    check = bounded.check
+    return BoundedFit(bounded.z[rows], Furnace(check.albedos[rows], check.std_errors[rows], check.transmissions[rows],
+                                               check.quadrature[rows], check.tolerance), bounded.refitted[rows])
+
+
+PREVIEW_SPP = 8  # samples per pixel of the generated views
+DEMO_PROMPT_ENDINGS = ("heavy haze, heavy dust", "light haze, glossy clearcoat",
+                       "moderate haze, heavy fuzz, light subsurface scattering")
+
+
+def generate_from_prompts(out: Path, seed: int, texture_size: int, view_size: int, progress: Progress) -> None:
+    """The paper's Fig. 8 on a mesh training never saw: one object, prompts naming different enhancements,
+    each row of generated.png under its prompt and the type the prompt chose.
+
+    A ``texture_size`` texture (what the generator's 32 px views resolve) keeps the energy guard,
+    which measures every distinct texel, to seconds; the views are rendered at ``view_size``."""
+    import json
+
+    import numpy as np
+    import torch
+
+    from richmat_addon.core.enhancement_types import TYPES
+
+    from .demo_render import captioned_row, save_sheet, to_u8
     from .generator import corpus, procedural
     from .generator import generate as gen
     from .generator.mesh_input import MeshInput
-    from .render.tonemap import agx, to_png
+    from .render.tonemap import agx
 
+    progress.start("generate from prompts")
     torch.set_num_threads(1)  # small tensors: a second thread costs more in synchronisation than it saves
     model, cfg = gen.load_generator()
     index = next(i for i in range(1000) if corpus.is_held_out(f"proc-{cfg.corpus.seed}-{i:05d}"))
@@ -128,14 +228,101 @@ def generate_from_prompts(out: Path, seed: int, texture_size: int = 32) -> None:
     subject = f"a {asset.shape}: {asset.pbr.name} {'metal' if asset.family == 'metal' else 'material'}"
     rows, records = [], []
     for ending in DEMO_PROMPT_ENDINGS:
-        result = gen.generate(inp, f"{subject} with {ending}", model, cfg, seed, texture_size=texture_size)
-        frames = gen.preview(inp, result.latents, frames=2, resolution=96, spp=8,
+        prompt = f"{subject} with {ending}"
+        result = gen.generate(inp, prompt, model, cfg, seed, texture_size=texture_size)
+        frames = gen.preview(inp, result.latents, frames=2, resolution=view_size, spp=PREVIEW_SPP,
                              energy_scale=result.energy_scale)
-        rows.append(np.concatenate(list(agx(frames.reshape(-1, *frames.shape[2:])).reshape(frames.shape)), 1))
-        records.append({"prompt": f"{subject} with {ending}", "type": result.type, "warnings": result.warnings,
+        rows.append(captioned_row([to_u8(agx(np.concatenate(list(frames), 1)))],
+                                  [f'"{prompt}" -> Type {result.type}: {TYPES[result.type].label}']))
+        records.append({"prompt": prompt, "type": result.type, "warnings": result.warnings,
                         "seconds": result.seconds})
+        progress.advance(1 / len(DEMO_PROMPT_ENDINGS))
     out.mkdir(parents=True, exist_ok=True)
-    to_png(np.concatenate(rows, 0), out / "generated.png")
+    png = save_sheet(rows, out / "generated.png")
     (out / "generated.json").write_text(json.dumps({"asset": asset.asset_id, "held_out": True, "seed": seed,
                                                      "rows": records}, indent=1))
-    print(f"generated {len(rows)} materials for {asset.asset_id} (held out); wrote {out / 'generated.png'}")
+    progress.write(f"generated {len(rows)} materials for {asset.asset_id} (held out); wrote {png}")
+
+
+# The stages' costs, as one-thread CPU seconds measured on this machine: the progress line's weights.
+ENHANCE_SECONDS_PER_TEXEL = 5e-6  # per type, writing its EXRs included
+ANALYTIC_SECONDS_PER_SAMPLE = 8.7e-6  # per pixel and sample of a ball render
+NEURAL_SECONDS_PER_SAMPLE = 3.7e-6
+FIT_TARGET_SECONDS = 5.0  # the analytic targets a fit draws before its first step
+FIT_STEP_SECONDS = 0.02
+FURNACE_SECONDS_PER_VECTOR = 0.023
+REFIT_STEP_SECONDS = 1.5  # with REFIT_LATENTS latents failing the furnace (about 40 % of the vectors fail)
+PROMPT_SECONDS = 16.0  # sampling and projection of one prompt
+GUARD_SECONDS_PER_TEXEL = 0.083  # the energy guard of a generated texel
+PREVIEW_SECONDS_PER_SAMPLE = 1.8e-6
+
+
+def expected_seconds(args: argparse.Namespace, vectors: int = 1000) -> dict[str, float]:
+    """Each stage's expected cost at the run's sizes: the progress line's weights. The energy
+    guard's grows with the ``vectors`` fitted, guessed until the types are made."""
+    from .neural.energy import REFIT_LATENTS
+
+    ball = args.resolution ** 2 * args.spp
+    stages = {"enhance": 6 * args.size ** 2 * ENHANCE_SECONDS_PER_TEXEL,
+              "render Types 0-5": 7 * ball * ANALYTIC_SECONDS_PER_SAMPLE}
+    if not args.no_neural:
+        refitted = min(0.4 * vectors, REFIT_LATENTS) / REFIT_LATENTS
+        stages["fit neural materials"] = FIT_TARGET_SECONDS + args.fit_steps * FIT_STEP_SECONDS
+        stages["energy guard"] = (vectors * FURNACE_SECONDS_PER_VECTOR
+                                  + args.refit_steps * refitted * REFIT_STEP_SECONDS)
+        stages["render neural vs analytic"] = 6 * ball * NEURAL_SECONDS_PER_SAMPLE
+    if not args.no_generate:
+        prompt = (PROMPT_SECONDS + args.generate_size ** 2 * GUARD_SECONDS_PER_TEXEL
+                  + 2 * args.view_size ** 2 * PREVIEW_SPP * PREVIEW_SECONDS_PER_SAMPLE)
+        stages["generate from prompts"] = len(DEMO_PROMPT_ENDINGS) * prompt
+    return stages
+
+
+class Progress:
+    """One line over all the demo's stages: which stage runs, the time spent and an estimate of the time left.
+
+    Each stage weighs its expected seconds (``expected_seconds``). Until a tenth of the
+    weight is done the estimate is the expected seconds left; then it is the elapsed time
+    times the remaining weight over the done weight, which follows this machine's speed
+    (extrapolating from the first few seconds would be off by orders of magnitude)."""
+
+    CALIBRATED = 0.1  # share of the weight done before the measured speed is trusted
+
+    def __init__(self, stages: dict[str, float]) -> None:
+        from tqdm import tqdm
+
+        self.stages = stages
+        self.current = next(iter(stages))
+        self.bar = tqdm(total=sum(stages.values()), smoothing=0.0,
+                        bar_format="{desc} {percentage:3.0f}%|{bar:20}| {elapsed} elapsed{postfix}")
+        self._show_left()
+
+    def start(self, stage: str) -> None:
+        self.current = stage
+        self.bar.set_description(f"[{list(self.stages).index(stage) + 1}/{len(self.stages)}] {stage}")
+
+    def seconds_left(self) -> float:
+        left = self.bar.total - self.bar.n
+        if self.bar.n < self.CALIBRATED * self.bar.total:
+            return left
+        return self.bar.format_dict["elapsed"] * left / self.bar.n
+
+    def _show_left(self) -> None:
+        self.bar.set_postfix_str(f"~{self.bar.format_interval(self.seconds_left())} left")
+
+    def advance(self, share: float) -> None:
+        """``share`` of the current stage is done (at most all of the line: shares may sum to 1 + rounding)."""
+        self.bar.update(min(share * self.stages[self.current], self.bar.total - self.bar.n))
+        self._show_left()
+
+    def reweigh(self, stage: str, seconds: float) -> None:
+        """A better estimate of a stage's seconds, known once it can be made."""
+        self.bar.total += seconds - self.stages[stage]
+        self.stages[stage] = seconds
+        self._show_left()
+
+    def write(self, message: str) -> None:
+        self.bar.write(message)
+
+    def close(self) -> None:
+        self.bar.close()

@@ -1,4 +1,4 @@
-"""Render enhanced materials on the preview ball for the demo's side-by-side image."""
+"""The demo's pictures: materials on the preview ball, and sheets of panels each under its caption."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,16 +8,16 @@ import numpy as np
 import torch
 
 from richmat_addon.core.builtin import sphere_uv
-from richmat_addon.core.enhance import baseline
-from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
+from richmat_addon.core.maps import EnhancedMaterial, ParamMap
 from richmat_addon.core.preview import PreviewScene
 
 from .brdf.model import LayeredBsdf
 from .neural.bsdf import NeuralBsdf
 from .neural.weights import NeuralModel
+from .render.ball import BsdfAt
 
-
-NeuralBsdfFactory = Callable[[np.ndarray], NeuralBsdf]  # world normals of ball points -> their BSDF
+CAPTION_FONT_SIZE = 14  # px: readable on a 160 px panel, where a Type's name wraps to two lines
+CAPTION_PAD = 4
 
 
 def sample_map(pmap: ParamMap, uv: np.ndarray) -> torch.Tensor:
@@ -44,58 +44,68 @@ def neural_bsdf(model: NeuralModel, latents: ParamMap, energy_scale: ParamMap, b
     return NeuralBsdf(model, sample_map(latents, uv), sample_map(base_color, uv), sample_map(energy_scale, uv))
 
 
-def render_side_by_side(pbr: PbrInputs, materials: list[EnhancedMaterial], probe: Path, resolution: int,
-                        spp: int, seed: int, out_png: Path) -> Path:
-    """One labelled row: the original PBR material, then each enhanced material, on the ball."""
-    from PIL import Image, ImageDraw
+def analytic_at(mat: EnhancedMaterial) -> BsdfAt:
+    """The ball's BSDF lookup of an analytic material (torch normals in, as ``render_ball`` passes them)."""
+    return lambda n: material_bsdf(mat, n.numpy())
 
-    from .cli import atomic_path
+
+def render_balls(materials: list[BsdfAt], probe: Path, resolution: int, spp: int, seed: int,
+                 done: Callable[[], None]) -> list[np.ndarray]:
+    """Display-referred (AgX sRGB) renders of each material on the preview ball; ``done()`` after each."""
     from .render.ball import render_ball
     from .render.envmap import EnvMap
     from .render.tonemap import agx
 
     env = EnvMap.load(probe)
     scene = PreviewScene(resolution=resolution)
-    labels = ["original PBR"] + [f"Type {m.type}" for m in materials]
-    tiles = []
-    for mat in [baseline(pbr)] + materials:
-        result = render_ball(lambda n, m=mat: material_bsdf(m, n.numpy()), env, scene, spp, seed)
-        tiles.append((agx(result.rgb) * 255 + 0.5).astype(np.uint8))
-    sheet = Image.fromarray(np.concatenate(tiles, 1))
-    draw = ImageDraw.Draw(sheet)
-    for k, label in enumerate(labels):
-        draw.text((k * resolution + 4, 4), label, fill=(255, 255, 255))
+    images = []
+    for bsdf_at in materials:
+        images.append(agx(render_ball(bsdf_at, env, scene, spp, seed).rgb))
+        done()
+    return images
+
+
+def to_u8(display: np.ndarray) -> np.ndarray:
+    """Display-referred float RGB in [0, 1] as 8-bit."""
+    return (np.clip(display, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+
+
+def _wrap(text: str, font, width: float) -> list[str]:  # type: ignore[no-untyped-def]
+    """``text`` broken at spaces into lines no wider than ``width`` px (a longer word keeps its own line)."""
+    lines: list[str] = []
+    for word in text.split():
+        if lines and font.getlength(f"{lines[-1]} {word}") <= width:
+            lines[-1] += f" {word}"
+        else:
+            lines.append(word)
+    return lines
+
+
+def captioned_row(panels: list[np.ndarray], captions: list[str]) -> np.ndarray:
+    """Panels (uint8, equal heights) side by side, each under its caption wrapped to the panel's width
+    on a dark strip: the caption never covers what the panel shows."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    font = ImageFont.load_default(size=CAPTION_FONT_SIZE)
+    wrapped = [_wrap(c, font, p.shape[1] - 2 * CAPTION_PAD) for p, c in zip(panels, captions)]
+    line_height = CAPTION_FONT_SIZE + CAPTION_PAD
+    strip = max(len(lines) for lines in wrapped) * line_height + CAPTION_PAD
+    out = []
+    for panel, lines in zip(panels, wrapped):
+        image = Image.new("RGB", (panel.shape[1], strip + panel.shape[0]), (40, 40, 40))
+        image.paste(Image.fromarray(panel), (0, strip))
+        ImageDraw.Draw(image).multiline_text((CAPTION_PAD, CAPTION_PAD), "\n".join(lines), font=font,
+                                             fill=(255, 255, 255), spacing=CAPTION_PAD)
+        out.append(np.asarray(image))
+    return np.concatenate(out, 1)
+
+
+def save_sheet(rows: list[np.ndarray], out_png: Path) -> Path:
+    """Rows of equal width, stacked, written as a PNG (atomically)."""
+    from PIL import Image
+
+    from .cli import atomic_path
+
     with atomic_path(out_png) as tmp:
-        sheet.save(tmp)
+        Image.fromarray(np.concatenate(rows, 0)).save(tmp)
     return out_png
-
-
-def render_neural_rows(rows: list[tuple[str, EnhancedMaterial, NeuralBsdfFactory]], probe: Path, resolution: int,
-                       spp: int, seed: int, out_png: Path) -> list[float]:
-    """Per material a row analytic | neural | FLIP map, labelled; returns the mean FLIPs."""
-    from PIL import Image, ImageDraw
-
-    from .cli import atomic_path
-    from .neural.evaluate import compare, side_by_side
-    from .render.ball import render_ball
-    from .render.envmap import EnvMap
-    from .render.tonemap import agx
-
-    env = EnvMap.load(probe)
-    scene = PreviewScene(resolution=resolution)
-    results = []
-    for _, mat, make_neural in rows:
-        ref = render_ball(lambda n, m=mat: material_bsdf(m, n.numpy()), env, scene, spp, seed)
-        with torch.no_grad():
-            neu = render_ball(lambda n: make_neural(n.numpy()), env, scene, spp, seed)
-        results.append(compare(agx(ref.rgb), agx(neu.rgb)))
-    sheet = Image.fromarray(side_by_side(results))
-    draw = ImageDraw.Draw(sheet)
-    for k, ((label, _, _), result) in enumerate(zip(rows, results)):
-        y = k * resolution + 4
-        draw.text((4, y), f"{label} analytic", fill=(255, 255, 255))
-        draw.text((resolution + 4, y), "neural", fill=(255, 255, 255))
-        draw.text((2 * resolution + 4, y), f"FLIP {result.flip:.3f}", fill=(255, 255, 255))
-    with atomic_path(out_png) as tmp:
-        sheet.save(tmp)
-    return [r.flip for r in results]
