@@ -18,7 +18,8 @@ metals badly and half its latents gain energy. Here the peaks are closed-form:
 
 Single-scatter Smith GGX with F <= 1 has albedo <= 1, so does the Lambertian with
 c_d <= 1, and gates only remove energy: albedo(f_neu) + T <= 1 - w_absorbed < 1 for
-every latent and view direction, with no furnace to repair anything. A half metal is
+every latent and view direction, with no furnace to repair anything (unit lobes: see
+``HybridDecoder.bounded``). A half metal is
 a metal lobe and a dielectric lobe in proportion, linear in the weights.
 
 The lobes' alphas are sqrt(a^2 + floor^2): training anneals ``alpha_floor`` down
@@ -42,6 +43,12 @@ from .networks import LATENT, direction_features, mlp
 LOG_ALPHA_MIN = math.log(1e-4)  # the lobe head's alphas span (1e-4, 1) before the floor
 INITIAL_ALPHAS = (0.02, 0.12, 0.45)
 E_MIN = 0.3  # Cycles' single-scatter GGX albedo table stays above this everywhere  # lobe k starts near the k-th: a mirror-like, a glossy and a rough lobe
+
+
+def upper_table() -> Tensor:
+    """The GGX albedo table a unit lobe divides by: raised above Cycles' so its bilinear read
+    never falls short of the albedo (``tables.generate_ggx_e_upper``)."""
+    return tables.table("ggx_E_upper", torch.device("cpu"), torch.float32).clone()
 
 
 def view_features(cos_i: Tensor) -> Tensor:
@@ -84,13 +91,9 @@ class HybridDecoder(nn.Module):
         super().__init__()
         self.lobes, self.width, self.gate_width, self.gate_depth = lobes, width, gate_width, gate_depth
         self.unit_lobes = unit_lobes
-        # albedo(f_neu) + T <= 1 for every latent, so fitting needs no furnace; divided by a bilinear
-        # table, a lobe's albedo can exceed 1 by the table's error (0.6 % at most, measured), so a
-        # unit-lobe decoder is bounded only approximately and goes through the furnace like the MLP.
-        self.bounded = not unit_lobes
         if unit_lobes:  # each GGX lobe divided by its albedo, so slot weights are energies; the table
-            # (Cycles' E(sqrt alpha, mu)) travels in the weights file, so the preview shader reads the same one
-            self.register_buffer("ggx_e", tables.table("ggx_E", torch.device("cpu"), torch.float32).clone())
+            # travels in the weights file, so the preview shader reads the same one
+            self.register_buffer("ggx_e", upper_table())
         # per lobe an alpha logit and F0 rgb; diffuse rgb; slot logits (K + 3); R
         self.head = mlp(LATENT + 3, width, 2, 5 * lobes + 7)
         self.gates = mlp(LATENT + 10, gate_width, gate_depth, 3 * (lobes + 1))
@@ -101,6 +104,13 @@ class HybridDecoder(nn.Module):
                 s = math.log(INITIAL_ALPHAS[k % len(INITIAL_ALPHAS)]) / LOG_ALPHA_MIN
                 bias[k] = math.log((1.0 - s) / s)
             self.gates[-1].bias.fill_(2.0)  # gates start open (sigmoid(2) = 0.88)
+
+    @property
+    def bounded(self) -> bool:
+        """albedo(f_neu) + T <= 1 for every latent, so fitting needs no furnace. A unit lobe's albedo
+        is E / table: <= 1 where the table (its bilinear read) is at least E everywhere, as the upper
+        table is; decoders saved with Cycles' own table (up to 0.86 % short) go through the furnace."""
+        return not self.unit_lobes or bool((self.ggx_e >= upper_table()).all())
 
     def head_at(self, latent: Tensor, wi: Tensor) -> Lobes:
         """The lobes at (latent, wi): once per shading point and view direction."""
