@@ -85,6 +85,7 @@ class TrainConfig:
     init_networks: list[str] = field(default_factory=lambda: ["encoder", "decoder", "sampler"])  # taken from init
     freeze_encoder: bool = False  # with init: train the decoder only, keeping the latent space
     lr: float = 2e-3
+    grad_clip: float = 0.0  # > 0: clip the gradient norm to this (a hybrid from scratch: near-mirror lobes spike)
     lr_final: float = 2e-5
     jitter: float = 0.005
     checkpoint_every: int = 500
@@ -255,6 +256,8 @@ class Trainer:
         loss = self.objective(batch, self.gen, self._latent_box() if energy else None)
         self.opt.zero_grad()
         loss.backward()
+        if cfg.grad_clip > 0:
+            torch.nn.utils.clip_grad_norm_(self.objective.parameters(), cfg.grad_clip)
         self.opt.step()
         return loss.item()
 
