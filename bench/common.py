@@ -94,7 +94,8 @@ def save_chart(fig: Any, path: Path, record: dict | None = None) -> None:
     where the figure is the bench's only output."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(path, dpi=CHART_DPI, metadata={"Comment": json.dumps(record)} if record else None)
+    fig.savefig(path, dpi=CHART_DPI, bbox_inches="tight",  # titles above image panels are not clipped
+                metadata={"Comment": json.dumps(record)} if record else None)
     pyplot().close(fig)
 
 
