@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -213,3 +214,20 @@ def test_relative_term_sees_a_broad_lobe_half_wrong() -> None:
     assert abs(plain - 0.95 * np.log(1.1 / 1.05)) < 1e-4, plain  # T and R exact (0 and 0.5)
     assert abs(with_term - plain - expected) < 1e-3, (with_term, plain)
     assert abs(float(decoder_loss(exact, z, batch, relative_weight=1.0)) - float(decoder_loss(exact, z, batch))) < 1e-5
+
+
+def test_a_batch_with_a_non_finite_gradient_is_skipped_not_applied(tmp_path: Path) -> None:
+    """One NaN gradient would turn every weight NaN (a hybrid from scratch hit one at step 4595):
+    the step is skipped, counted, and the weights stay as they were."""
+    from torch_models.neural.train import TrainConfig, Trainer
+
+    cfg = TrainConfig(**dict(TINY, width=16, depth=2, steps=3, sampler_steps=0))
+    trainer = Trainer(cfg, tmp_path / "run")
+    before = [p.detach().clone() for p in trainer.decoder.parameters()]
+    objective = trainer.objective.forward
+    trainer.objective.forward = lambda *a, **k: objective(*a, **k) * torch.tensor(float("nan"))
+    assert math.isnan(trainer._decoder_step()) and trainer.skipped == 1
+    assert all(torch.equal(b, p) for b, p in zip(before, trainer.decoder.parameters()))
+    trainer.objective.forward = objective
+    assert math.isfinite(trainer._decoder_step())
+    assert not all(torch.equal(b, p) for b, p in zip(before, trainer.decoder.parameters()))

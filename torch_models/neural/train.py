@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -180,6 +181,7 @@ class Trainer:
         self.sampler = sampler.to(device) if isinstance(sampler, SamplingDecoder) else None
         self.objective = data_parallel(Objective(self.encoder, self.decoder, cfg), self.where)
         self.step = 0
+        self.skipped = 0  # batches skipped since the last checkpoint (non-finite gradients)
         self.box: tuple[Tensor, Tensor] | None = None  # training latent box, set when phase 2 starts
         self.gen = torch.Generator().manual_seed(self._data_seed(0))
         drawn = parameter_vectors(cfg.pool, np.random.default_rng(cfg.seed)) if vectors is None else vectors
@@ -256,8 +258,13 @@ class Trainer:
         loss = self.objective(batch, self.gen, self._latent_box() if energy else None)
         self.opt.zero_grad()
         loss.backward()
-        if cfg.grad_clip > 0:
-            torch.nn.utils.clip_grad_norm_(self.objective.parameters(), cfg.grad_clip)
+        norm = torch.nn.utils.clip_grad_norm_(self.objective.parameters(), cfg.grad_clip or math.inf)
+        if not torch.isfinite(norm):  # one non-finite gradient would make every weight NaN: skip the batch
+            self.opt.zero_grad()
+            self.skipped += 1
+            print(f"train: step {self.step}: non-finite gradient (loss {loss.item():.4g}), batch skipped",
+                  file=sys.stderr)
+            return math.nan
         self.opt.step()
         return loss.item()
 
@@ -300,11 +307,11 @@ class Trainer:
                 self.step += 1
                 bar.update(1)
                 if self.step % 50 == 0:
-                    bar.set_postfix(phase=phase, loss=f"{np.mean(losses[-50:]):.4f}")
+                    bar.set_postfix(phase=phase, loss=f"{np.nanmean(losses[-50:]):.4f}")
                 if self.step % cfg.checkpoint_every == 0 or self.step == total:
-                    cfg.history.append({"step": self.step, "phase": phase, "loss": float(np.mean(losses)),
-                                        "seconds": time.perf_counter() - start})
-                    losses = []
+                    cfg.history.append({"step": self.step, "phase": phase, "loss": float(np.nanmean(losses)),
+                                        "seconds": time.perf_counter() - start, "skipped": self.skipped})
+                    losses, self.skipped = [], 0
                     self.save()
 
 
