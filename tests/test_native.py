@@ -264,3 +264,47 @@ def test_gltf_export_writes_the_native_materials_principled_values(blender_run, 
     # The dielectric's F0 (Blender: F0(IOR) x 2 x level x tint) is the material's, whatever the IOR carries.
     f0 = albedo_fits.f0(v["IOR"]) * 2 * v["Specular IOR Level"] * np.mean(v["Specular Tint"])
     assert f0 == pytest.approx(albedo_fits.f0(c["diel_ior"]), rel=1e-3)
+
+
+USD = r'''
+bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16)
+obj = bpy.context.active_object
+material = bpy.data.materials.new("painted")
+obj.data.materials.append(material)
+image = bpy.data.images.new("stripes", 16, 16)
+pixels = np.zeros((16, 16, 4), np.float32)
+pixels[..., 3] = 1.0
+pixels[:, ::2, 0] = 0.8  # red stripes: a texture, not a constant
+pixels[:, 1::2, 2] = 0.6
+image.pixels = pixels.ravel()
+image.filepath_raw = str(Path(TMP) / "stripes.png")
+image.file_format = "PNG"
+image.save()
+tree = material.node_tree
+texture = tree.nodes.new("ShaderNodeTexImage")
+texture.image = image
+tree.links.new(texture.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
+scene.richmat.enhancement_type = "2"
+assert run_op("uplift_material")[0] == {"FINISHED"}
+enhanced = obj.active_material
+out = Path(TMP) / "usd"
+assert bpy.ops.wm.usd_export(filepath=str(out / "ball.usda"), export_materials=True, generate_preview_surface=True,
+                             export_textures_mode="NEW") == {"FINISHED"}
+print("RESULT " + json.dumps({"material": enhanced.name, "usda": (out / "ball.usda").read_text(),
+                              "textures": sorted(p.name for p in (out / "textures").iterdir())}))
+'''
+
+
+def test_usd_export_keeps_the_enhanced_materials_textures(blender_run, extension_zip: Path,  # noqa: F811
+                                                          tmp_path: Path):
+    """USD's exporter reads the export output's Principled BSDF: its base colour stays a
+    texture (the enhanced material's, as read from the original), written beside the file and
+    bound in a UsdPreviewSurface; the coat reaches it too."""
+    result = blender_run(script(f"TMP = {str(tmp_path)!r}\n" + USD, extension_zip))
+    usda = result["usda"]
+    assert result["material"].endswith("(richmat)") and "UsdPreviewSurface" in usda
+    assert result["textures"], "no texture written beside the USD file"
+    for name in result["textures"]:
+        assert name in usda  # every written texture is referenced by the material network
+    assert "inputs:diffuseColor.connect" in usda  # the base colour is a texture, not a constant
+    assert "float inputs:clearcoat = 1" in usda  # Type 2's coat
