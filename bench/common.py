@@ -57,7 +57,9 @@ def _command() -> str:
 
 def provenance(decoders: Iterable[Path] = (), generator: Path | None = None) -> dict:
     """The report's ``provenance`` block; ``decoders`` and ``generator`` are weights folders."""
-    out = {"git_commit": _git("rev-parse", "HEAD"), "tree_dirty": bool(_git("status", "--porcelain", "--untracked-files=no")),
+    # a bench rewrites its own reports as it goes: only changes outside docs/reports/ make the tree dirty
+    dirty = _git("status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)docs/reports")
+    out = {"git_commit": _git("rev-parse", "HEAD"), "tree_dirty": bool(dirty),
            "command": _command(), "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
            "machine": {"platform": platform.platform(), "processor": platform.machine(), "cpus": os.cpu_count()},
            "decoder_sha256": {_shown(d): file_sha256(Path(d) / "weights.safetensors") for d in decoders}}
