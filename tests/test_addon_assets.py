@@ -23,7 +23,14 @@ for obj in meshes:
     res, err = run_op("uplift_material")
     timings[obj.name] = time.process_time() - t
     assert res == {"FINISHED"}, (obj.name, err)
-after = render(48, 8)
+after = render(48, 8)  # Cycles on the CPU with OSL off (the SVM path of every GPU): the native graph
+scene.cycles.shading_system = True
+for obj in meshes:
+    bpy.context.view_layer.objects.active = obj
+    res, err = run_op("toggle_cycles_graph")
+    assert res == {"FINISHED"}, (obj.name, err)
+exact = render(48, 8)  # the same materials through their OSL shaders
+pink = lambda rgb: float(((rgb[..., 0] > 0.8) & (rgb[..., 1] < 0.1) & (rgb[..., 2] > 0.8)).mean())
 for obj in meshes:
     bpy.context.view_layer.objects.active = obj
     res, err = run_op("bake_parameters")
@@ -35,6 +42,7 @@ used = sorted({s.material.name for o in meshes for s in o.material_slots if s.ma
 print("RESULT " + json.dumps(dict(
     originals=originals, used=used, uplift_s=timings,
     before=float(before.mean()), after=float(after.mean()), finite=bool(np.isfinite(after).all()),
+    exact=float(exact.mean()), pink=[pink(after), pink(exact)],
     folders=sorted(p.name for p in Path(OUT).iterdir()))))
 '''
 
@@ -50,6 +58,8 @@ def test_uplift_bake_export_on_a_real_asset(asset: str, shared_assets: Path, ble
                          timeout=600)
     assert result["used"] == [f"{name} (richmat)" for name in result["originals"]]
     assert result["finite"] and result["after"] != pytest.approx(result["before"], rel=1e-3)
+    # the native graph (OSL off) and the exact OSL one render the same materials, neither pink
+    assert result["after"] == pytest.approx(result["exact"], rel=0.1) and max(result["pink"]) < 0.01
     assert len(result["folders"]) == len(result["originals"])  # one folder per material, none shared
     for folder in result["folders"]:
         assert (out / folder / "params.json").is_file() and (out / folder / "material.mtlx").is_file()
