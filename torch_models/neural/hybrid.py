@@ -110,7 +110,8 @@ class HybridDecoder(nn.Module):
         """albedo(f_neu) + T <= 1 for every latent, so fitting needs no furnace. A unit lobe's albedo
         is E / table: <= 1 where the table (its bilinear read) is at least E everywhere, as the upper
         table is; decoders saved with Cycles' own table (up to 0.86 % short) go through the furnace."""
-        return not self.unit_lobes or bool((self.ggx_e >= upper_table()).all())
+        return not self.unit_lobes or bool((self.ggx_e >= tables.table("ggx_E_upper", self.ggx_e.device,
+                                                                        self.ggx_e.dtype)).all())
 
     def head_at(self, latent: Tensor, wi: Tensor) -> Lobes:
         """The lobes at (latent, wi): once per shading point and view direction."""
