@@ -6,8 +6,10 @@ JOB.json holds {"cases": [...], "probe", "resolution", "samples", "seed", "out"}
 optionally, "configs" (default ``CPU_CONFIGS``: Cycles on the CPU reading the OSL
 graph, then the native one) and "control" (also render a plain Principled BSDF
 ball, which tells a compiled EEVEE shader from EEVEE's fallback). Writes
-OUT/<case>_<label>_<frame>.exr and OUT/times.json ({case: {label: {"first": [wall, cpu],
-"frame": [wall, cpu]}}}, seconds; a configuration whose device is missing is left out).
+OUT/<case>_<label>_<frame>.exr, OUT/times.json ({case: {label: {"first": [wall, cpu],
+"frame": [wall, cpu]}}}, seconds; a configuration whose device is missing is left out)
+and OUT/devices.json ({label: the devices it rendered on}), adding to those files
+when they are there.
 
 One preview scene, one render thread. Each case's material carries both graphs,
 as an uplifted one does; Cycles reads the configuration's graph and shades with
@@ -39,27 +41,34 @@ CONTROL = "control"  # the plain Principled BSDF ball's case name
 FRAMES = 3
 
 
-def use(scene: bpy.types.Scene, config: dict) -> bool:
-    """Set the scene up for ``config``; False when its device is missing."""
+def use(scene: bpy.types.Scene, config: dict) -> list[str]:
+    """Set the scene up for ``config``; the names of the devices it renders on, none when they are missing."""
     import bpy
 
+    from richmat_addon.blender import preview_scene
+
     scene.render.engine = config["engine"]
+    preview_scene.use_mesh_ball(config["engine"] != "CYCLES")
     if config["engine"] != "CYCLES":
         scene.eevee.taa_render_samples = scene.cycles.samples
-        return True
+        return ["GPU (EEVEE)"]
     scene.cycles.shading_system = config["graph"] == "osl"
     scene.cycles.device = "CPU" if config["device"] == "CPU" else "GPU"
     if config["device"] == "CPU":
-        return True
+        return ["CPU"]
     prefs = bpy.context.preferences.addons["cycles"].preferences
     try:
         prefs.compute_device_type = config["device"]
     except TypeError:  # not a device type this build knows
-        return False
+        return []
     prefs.get_devices()
     for device in prefs.devices:
         device.use = device.type == config["device"]
-    return any(device.use for device in prefs.devices)
+    return [device.name for device in prefs.devices if device.use]
+
+
+def read_json(path: Path) -> dict:
+    return json.loads(path.read_text()) if path.exists() else {}
 
 
 def main(job_path: Path) -> None:
@@ -93,11 +102,14 @@ def main(job_path: Path) -> None:
     materials = [(c.name, cycles_builder.build_material(c.material(), {}, c.name, node=c.graph_node())) for c in cases]
     if job.get("control"):
         materials.append((CONTROL, bpy.data.materials.new(CONTROL)))
-    times: dict[str, dict[str, dict[str, list[float]]]] = {}
+    # Runs into the same folder add to its records (a GPU machine can give EEVEE and Cycles separate time limits).
+    times: dict[str, dict[str, dict[str, list[float]]]] = read_json(out / "times.json")
+    devices: dict[str, list[str]] = read_json(out / "devices.json")
     for name, material in materials:
         ball.default_value = material
         for config in configs:
-            if not use(scene, config):
+            devices[config["label"]] = use(scene, config)
+            if not devices[config["label"]]:
                 continue
             if cycles_builder.cycles_graph(material) is not None:
                 cycles_builder.use_in_cycles(material, config["graph"])
@@ -109,7 +121,9 @@ def main(job_path: Path) -> None:
                                                            "frame": [min(column) for column in zip(*seconds[1:])]}
         print(f"{name}: " + ", ".join(f"{label} {t['frame'][1]:.2f} s" for label, t in times[name].items()),
               flush=True)
-    (out / "times.json").write_text(json.dumps(times, indent=1))
+        # After every case, so that a run stopped by a time limit keeps what it finished.
+        (out / "times.json").write_text(json.dumps(times, indent=1))
+        (out / "devices.json").write_text(json.dumps({label: names for label, names in devices.items() if names}))
 
 
 if __name__ == "__main__":

@@ -128,6 +128,32 @@ def test_camera_and_probe_conventions_match_cycles(blender_run, tmp_path: Path, 
     assert np.abs(cycles - plain.reshape(48, 48, 3).numpy()).mean() / ours.mean() > 0.05
 
 
+def test_mesh_ball_renders_like_the_point_ball(blender_run, tmp_path: Path) -> None:
+    """The UV-sphere ball that EEVEE draws renders in Cycles like the exact point ball, so EEVEE's renders
+    compare fairly with Cycles' references; and the switch really swaps the geometry."""
+    vertices = blender_run(f"""
+        import bpy
+        from pathlib import Path
+        from richmat_addon.core.preview import PreviewScene
+        from richmat_addon.blender import preview_scene
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        scene = bpy.context.scene
+        material = bpy.data.materials.new("plain")
+        preview_scene.setup(scene, PreviewScene(resolution=48), Path({str(PROBE)!r}), material, samples=32)
+        ball = bpy.data.objects[preview_scene.BALL]
+        vertices = []
+        for on in (False, True):
+            preview_scene.use_mesh_ball(on)
+            vertices.append(len(ball.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.vertices))
+            preview_scene.render_exr(scene, Path({str(tmp_path)!r}) / f"ball_{{on}}.exr")
+        print("RESULT", vertices)
+    """)
+    assert vertices[0] == 0 and vertices[1] > 10_000  # a point, then the fine UV sphere
+    point, mesh = (read_exr(tmp_path / f"ball_{on}.exr") for on in (False, True))
+    assert np.abs(point[..., 3] - mesh[..., 3]).mean() < 0.005  # the same silhouette
+    assert np.abs(point[..., :3] - mesh[..., :3]).mean() / point[..., :3].mean() < 0.03
+
+
 def test_agx_matches_blender(blender_run, tmp_path: Path) -> None:
     """Blender saving a float image with the AgX view gives the same 8-bit values as ours."""
     ramp = np.linspace(0.0, 3.0, 16 * 16 * 3, dtype=np.float32).reshape(16, 16, 3)

@@ -2,7 +2,8 @@
 
 The ball is a single point of a point cloud (Cycles renders points as exact
 spheres), so its silhouette and normals are those of the torch renderer's
-analytic sphere, not of a tessellated mesh. The probe lights the scene through
+analytic sphere, not of a tessellated mesh. EEVEE draws points as coarse
+polyhedra, so for EEVEE the ball switches to a fine smooth-shaded UV sphere. The probe lights the scene through
 an Environment Texture (bilinear, equirectangular); the film is transparent, so
 the RGB of the saved EXR is the ball over black.
 """
@@ -16,23 +17,41 @@ import bpy
 from ..core.preview import PreviewScene
 
 BALL = "richmat_preview_ball"
+MESH_SWITCH = "mesh ball"
+MESH_SEGMENTS = 256  # around the equator; half as many rings
 
 
 def _ball_object(radius: float, material: bpy.types.Material | None) -> bpy.types.Object:
-    """An object whose geometry nodes make one point of ``radius`` at the origin."""
+    """An object whose geometry nodes make one point of ``radius`` at the origin, or, switched by
+    ``use_mesh_ball``, a smooth-shaded UV sphere of that radius."""
     tree = bpy.data.node_groups.new(BALL, "GeometryNodeTree")
     tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
     points = tree.nodes.new("GeometryNodePoints")
     points.inputs["Count"].default_value = 1
     points.inputs["Radius"].default_value = radius
+    sphere = tree.nodes.new("GeometryNodeMeshUVSphere")
+    sphere.inputs["Segments"].default_value, sphere.inputs["Rings"].default_value = MESH_SEGMENTS, MESH_SEGMENTS // 2
+    sphere.inputs["Radius"].default_value = radius
+    smooth = tree.nodes.new("GeometryNodeSetShadeSmooth")
+    switch = tree.nodes.new("GeometryNodeSwitch")
+    switch.input_type = "GEOMETRY"
+    switch.name = MESH_SWITCH
     set_material = tree.nodes.new("GeometryNodeSetMaterial")
     set_material.inputs["Material"].default_value = material
     out = tree.nodes.new("NodeGroupOutput")
-    tree.links.new(points.outputs["Points"], set_material.inputs["Geometry"])
+    tree.links.new(sphere.outputs["Mesh"], smooth.inputs["Geometry"])
+    tree.links.new(points.outputs["Points"], switch.inputs["False"])
+    tree.links.new(smooth.outputs["Geometry"], switch.inputs["True"])
+    tree.links.new(switch.outputs["Output"], set_material.inputs["Geometry"])
     tree.links.new(set_material.outputs["Geometry"], out.inputs["Geometry"])
     obj = bpy.data.objects.new(BALL, bpy.data.meshes.new(BALL))
     obj.modifiers.new("ball", "NODES").node_group = tree
     return obj
+
+
+def use_mesh_ball(on: bool) -> None:
+    """Draw the ball as a mesh (EEVEE draws a point of a point cloud as a coarse polyhedron) or as the point."""
+    bpy.data.node_groups[BALL].nodes[MESH_SWITCH].inputs["Switch"].default_value = on
 
 
 def _world(probe: Path, rotation_deg: float) -> bpy.types.World:
