@@ -35,6 +35,7 @@ import math
 
 import numpy as np
 
+from .schema import SHEEN_ROUGHNESS_MIN
 from .tensor_file import linear_layers
 
 MAX_LOG_F = 12.0  # networks.MAX_LOG_F
@@ -46,6 +47,7 @@ UNIFORM_SHARE = 0.2
 LOG_SLOPE_FLOOR = 1e-10  # networks.LOG_SLOPE_FLOOR
 LOG_ALPHA_MIN = math.log(1e-4)  # hybrid.LOG_ALPHA_MIN
 E_MIN = 0.3  # hybrid.E_MIN
+SHEEN_DROP = 1e-5  # brdf.lobes._SHEEN_DROP: the smallest LTC A
 LUMINANCE = (0.2126, 0.7152, 0.0722)  # brdf.model.LUMINANCE
 # A network's input width names its direction encoding (networks.DIRECTION_ENCODINGS):
 # 6 latents + 10 ("half") or + 11 ("half_log_slope", which appends ln(tan^2 theta_h) / 8).
@@ -181,8 +183,9 @@ void setup(float z[6], vector wi, output float m[STATE])
 }
 """
 
-# s: alphas [0, K), Schlick F0s [F0S, F0S + 3K), diffuse colour [DIFFUSE, +3),
-# slot weights [WEIGHTS, +K+3) (the GGX lobes, diffuse, T, absorbed), component probabilities [PROBS, +K+1)
+# s: alphas [0, K), Schlick F0s [F0S, F0S + 3K), diffuse colour [DIFFUSE, +3), with a sheen its
+# roughness [SHEEN_R] and colour [SHEEN_R + 1, +3), slot weights [WEIGHTS, +K+3+S) (the GGX lobes,
+# diffuse, [sheen,] T, absorbed), component probabilities [PROBS, +K+1+S) (S = SHEEN, 0 or 1)
 _HYBRID = r"""
 float pow5(float x) { return x * x * x * x * x; }
 float luminance_at(float s[STATE], int i) { return LUM_R * s[i] + LUM_G * s[i + 1] + LUM_B * s[i + 2]; }
@@ -206,6 +209,9 @@ void setup(float z[6], vector wi, output float s[STATE])
     }
     for (int i = F0S; i < WEIGHTS; i++)
         s[i] = sigmoid(o[i]);
+#if SHEEN
+    s[SHEEN_R] = SHEEN_ROUGHNESS_MIN + (1.0 - SHEEN_ROUGHNESS_MIN) * s[SHEEN_R];
+#endif
     float top = o[WEIGHTS], total = 0.0;
     for (int i = WEIGHTS; i < PROBS; i++)
         top = max(top, o[i]);
@@ -216,20 +222,55 @@ void setup(float z[6], vector wi, output float s[STATE])
     for (int i = WEIGHTS; i < PROBS; i++)
         s[i] /= total;
     float schlick = pow5(1.0 - c), sum = 0.0;
-    for (int k = 0; k <= LOBES; k++) {
-        float albedo = k < LOBES ? luminance_at(s, F0S + 3 * k) : luminance_at(s, DIFFUSE);
+    for (int k = 0; k < COMPONENTS; k++) {
+        float albedo = k < LOBES ? luminance_at(s, F0S + 3 * k) : luminance_at(s, k == LOBES ? DIFFUSE : SHEEN_R + 1);
         if (k < LOBES)
             albedo += (1.0 - albedo) * schlick;
         s[PROBS + k] = s[WEIGHTS + k] * albedo + 1e-6;
         sum += s[PROBS + k];
     }
-    for (int k = 0; k <= LOBES; k++)
+    for (int k = 0; k < COMPONENTS; k++)
         s[PROBS + k] /= sum;
 }
 
+#if SHEEN
+// lobes.sheen_pdf: Cycles' LTC sheen divided by its albedo, in the frame whose x axis is wi's tangential
+// direction; A clamped as for sampling
+vector sheen_local(vector wi, vector w)
+{
+    float len = hypot(wi[0], wi[1]);
+    float tx = len > 1e-7 ? wi[0] / len : 1.0, ty = len > 1e-7 ? wi[1] / len : 0.0;
+    return vector(tx * w[0] + ty * w[1], -ty * w[0] + tx * w[1], w[2]);
+}
+
+float sheen_density(float s[STATE], vector wi, vector wo)
+{
+    float a, b;
+    sheen_ltc(s[SHEEN_R], wi[2], a, b);
+    a = max(a, SHEEN_DROP);
+    vector l = sheen_local(wi, wo);
+    float len_sq = (a * l[0] + b * l[2]) * (a * l[0] + b * l[2]) + (a * l[1]) * (a * l[1]) + l[2] * l[2];
+    float q = a / max(len_sq, 1e-30);
+    return l[2] > 0 ? l[2] * q * q / M_PI : 0.0;
+}
+
+vector sheen_sample(float s[STATE], vector wi, float u1, float u2)
+{
+    float a, b;
+    sheen_ltc(s[SHEEN_R], wi[2], a, b);
+    a = max(a, SHEEN_DROP);
+    float r = sqrt(u1), phi = M_2PI * u2;
+    float dx = r * cos(phi), dy = r * sin(phi), dz = sqrt(max(1.0 - u1, 0.0));
+    vector l = normalize(vector(dx - dz * b, dy, dz * a));
+    float len = hypot(wi[0], wi[1]);
+    float tx = len > 1e-7 ? wi[0] / len : 1.0, ty = len > 1e-7 ? wi[1] / len : 0.0;
+    return vector(tx * l[0] - ty * l[1], ty * l[0] + tx * l[1], l[2]);
+}
+#endif
+
 void decode(float z[6], float s[STATE], vector wi, vector wo, output color f, output float T)
 {
-    T = s[WEIGHTS + LOBES + 1];
+    T = s[WEIGHTS + LOBES + 1 + SHEEN];
     f = 0;
     if (wi[2] > 0 && wo[2] > 0) {
         float x[NET_INPUTS];
@@ -250,6 +291,10 @@ void decode(float z[6], float s[STATE], vector wi, vector wo, output color f, ou
         }
         color gate = color(sigmoid(g[3 * LOBES]), sigmoid(g[3 * LOBES + 1]), sigmoid(g[3 * LOBES + 2]));
         f += s[WEIGHTS + LOBES] / M_PI * wo[2] * color(s[DIFFUSE], s[DIFFUSE + 1], s[DIFFUSE + 2]) * gate;
+#if SHEEN
+        gate = color(sigmoid(g[3 * LOBES + 3]), sigmoid(g[3 * LOBES + 4]), sigmoid(g[3 * LOBES + 5]));
+        f += s[WEIGHTS + LOBES + 1] * sheen_density(s, wi, wo) * color(s[SHEEN_R + 1], s[SHEEN_R + 2], s[SHEEN_R + 3]) * gate;
+#endif
     }
 }
 
@@ -264,15 +309,19 @@ float lobe_pdf(float s[STATE], vector wi, vector wo)
         float a = clamp(s[k], 1e-4, 1.0);
         pdf += s[PROBS + k] * ggx_d(h, a * a) / ((1.0 + ggx_lambda(wi, a * a)) * 4.0 * max(wi[2], 1e-12));
     }
+#if SHEEN
+    pdf += s[PROBS + LOBES + 1] * sheen_density(s, wi, wo);
+#endif
     return pdf;
 }
 
-// a component by its probability; a GGX lobe by its visible normals (Heitz 2018), the diffuse one by cosine
+// a component by its probability; a GGX lobe by its visible normals (Heitz 2018), the diffuse one by
+// cosine, the sheen through its LTC
 vector lobe_sample(float s[STATE], vector wi, float u0, float u1, float u2)
 {
     int choice = 0;
     float edge = 0.0;
-    for (int k = 0; k < LOBES; k++) {
+    for (int k = 0; k < COMPONENTS - 1; k++) {
         edge += s[PROBS + k];
         if (u0 >= edge)
             choice = k + 1;
@@ -280,6 +329,10 @@ vector lobe_sample(float s[STATE], vector wi, float u0, float u1, float u2)
     float r = sqrt(u1), phi = M_2PI * u2;
     if (choice == LOBES)
         return vector(r * cos(phi), r * sin(phi), sqrt(max(1.0 - u1, 0.0)));
+#if SHEEN
+    if (choice == LOBES + 1)
+        return sheen_sample(s, wi, u1, u2);
+#endif
     float a = clamp(s[choice], 1e-4, 1.0);
     vector wi_s = normalize(vector(a * wi[0], a * wi[1], wi[2]));
     float lensq = wi_s[0] * wi_s[0] + wi_s[1] * wi_s[1];
@@ -379,18 +432,23 @@ def _mlp_parts(tensors: dict[str, np.ndarray]) -> str:
 
 def _hybrid_parts(tensors: dict[str, np.ndarray]) -> str:
     head, gates = linear_layers(tensors, "decoder.head"), linear_layers(tensors, "decoder.gates")
-    k = (head[-1][0].shape[0] - 7) // 5
-    if (head[0][0].shape[1] != 9 or head[-1][0].shape[0] != 5 * k + 7 or k < 1 or gates[0][0].shape[1] != 16
-            or gates[-1][0].shape[0] != 3 * (k + 1) or "decoder.alpha_floor" not in tensors):
+    sheen = int("decoder.sheen_ltc" in tensors)
+    k = (head[-1][0].shape[0] - 7 - 5 * sheen) // 5
+    if (head[0][0].shape[1] != 9 or head[-1][0].shape[0] != 5 * k + 7 + 5 * sheen or k < 1
+            or gates[0][0].shape[1] != 16 or gates[-1][0].shape[0] != 3 * (k + 1 + sheen)
+            or "decoder.alpha_floor" not in tensors):
         raise ValueError("the weights do not match the hybrid decoder layout this shader implements "
-                         "(head 9 -> 5K + 7, gates 16 -> 3K + 3, alpha_floor)")
+                         "(head 9 -> 5K + 7 [+ 5 with a sheen], gates 16 -> 3K + 3 [+ 3], alpha_floor)")
+    weights = 4 * k + 3 + 4 * sheen
+    probs = weights + k + 3 + sheen
     r, g, b = LUMINANCE
-    return (_defines(NET_INPUTS=16, NET_EXTRA="", LOBES=k, HEAD_OUTPUTS=5 * k + 7, GATE_OUTPUTS=3 * k + 3, F0S=k, DIFFUSE=4 * k,
-                     WEIGHTS=4 * k + 3, PROBS=5 * k + 6, STATE=6 * k + 7, T_SLOT=5 * k + 4,
-                     ALPHA_FLOOR=f"{float(tensors['decoder.alpha_floor']):.9g}", LOG_ALPHA_MIN=f"{LOG_ALPHA_MIN:.9g}",
-                     LUM_R=r, LUM_G=g, LUM_B=b)
-            + _unit_lobes(tensors) + _mlp_function("head_mlp", head) + _mlp_function("gates_mlp", gates)
-            + _COMMON + _HYBRID)
+    return (_defines(NET_INPUTS=16, NET_EXTRA="", LOBES=k, SHEEN=sheen, COMPONENTS=k + 1 + sheen,
+                     HEAD_OUTPUTS=probs + 1, GATE_OUTPUTS=3 * (k + 1 + sheen), F0S=k, DIFFUSE=4 * k,
+                     SHEEN_R=4 * k + 3, WEIGHTS=weights, PROBS=probs, STATE=probs + k + 1 + sheen,
+                     T_SLOT=weights + k + 1 + sheen, ALPHA_FLOOR=f"{float(tensors['decoder.alpha_floor']):.9g}",
+                     LOG_ALPHA_MIN=f"{LOG_ALPHA_MIN:.9g}", LUM_R=r, LUM_G=g, LUM_B=b)
+            + _unit_lobes(tensors) + _sheen(tensors) + _mlp_function("head_mlp", head)
+            + _mlp_function("gates_mlp", gates) + _COMMON + _HYBRID)
 
 
 def _unit_lobes(tensors: dict[str, np.ndarray]) -> str:
@@ -398,21 +456,37 @@ def _unit_lobes(tensors: dict[str, np.ndarray]) -> str:
     table = tensors.get("decoder.ggx_e")
     if table is None:
         return ""
-    return (_defines(UNIT_LOBES=1, E_SIZE=table.shape[-1], E_MIN=E_MIN) + _GGX_E_HEAD
-            + _array("GGX_E", np.asarray(table, np.float32).reshape(-1)) + _GGX_E_BODY)
+    return _defines(UNIT_LOBES=1, E_MIN=E_MIN) + _table_function(
+        "ggx_e", {"GGX_E": table}, "clamp(sqrt(alpha), 0.0, 1.0)", "mu", "float alpha, float mu", "float")
 
 
-# tables.lookup of the weights' own E table at (sqrt alpha, mu): bilinear, node-centred, clamped;
-# the first coordinate indexes the table's last axis
-_GGX_E_HEAD = "float ggx_e(float alpha, float mu)\n{\n"
-_GGX_E_BODY = r"""    float x = clamp(sqrt(alpha), 0.0, 1.0) * (E_SIZE - 1), y = clamp(mu, 0.0, 1.0) * (E_SIZE - 1);
-    int x0 = min(int(floor(x)), E_SIZE - 1), y0 = min(int(floor(y)), E_SIZE - 1);
-    int x1 = min(x0 + 1, E_SIZE - 1), y1 = min(y0 + 1, E_SIZE - 1);
-    float fx = x - x0, fy = y - y0;
-    return (1.0 - fy) * ((1.0 - fx) * GGX_E[y0 * E_SIZE + x0] + fx * GGX_E[y0 * E_SIZE + x1])
-        + fy * ((1.0 - fx) * GGX_E[y1 * E_SIZE + x0] + fx * GGX_E[y1 * E_SIZE + x1]);
-}
-"""
+def _sheen(tensors: dict[str, np.ndarray]) -> str:
+    """Cycles' sheen LTC table (A, B) that a hybrid with a sheen slot carries (``decoder.sheen_ltc``), or nothing."""
+    table = tensors.get("decoder.sheen_ltc")
+    if table is None:
+        return ""
+    return _defines(SHEEN_ROUGHNESS_MIN=SHEEN_ROUGHNESS_MIN, SHEEN_DROP=SHEEN_DROP) + _table_function(
+        "sheen_ltc", {"SHEEN_A": table[0], "SHEEN_B": table[1]}, "mu", "roughness",
+        "float roughness, float mu, output float a, output float b", "void")
+
+
+def _table_function(name: str, tables: dict[str, np.ndarray], x: str, y: str, params: str, returns: str) -> str:
+    """An OSL function reading square tables as ``tables.lookup`` does at (x, y): bilinear, node-centred,
+    clamped; x indexes a table's last axis. One table returns its value; several write their outputs,
+    named by the lower-case table names after the function's (``SHEEN_A`` -> ``a``)."""
+    size = next(iter(tables.values())).shape[-1]
+    src = f"{returns} {name}({params})\n{{\n"
+    for array, values in tables.items():
+        src += _array(array, np.asarray(values, np.float32).reshape(-1))
+    src += (f"    float x = clamp({x}, 0.0, 1.0) * {size - 1}, y = clamp({y}, 0.0, 1.0) * {size - 1};\n"
+            f"    int x0 = min(int(floor(x)), {size - 1}), y0 = min(int(floor(y)), {size - 1});\n"
+            f"    int x1 = min(x0 + 1, {size - 1}), y1 = min(y0 + 1, {size - 1});\n"
+            "    float fx = x - x0, fy = y - y0;\n")
+    for array in tables:
+        read = (f"(1.0 - fy) * ((1.0 - fx) * {array}[y0 * {size} + x0] + fx * {array}[y0 * {size} + x1])\n"
+                f"        + fy * ((1.0 - fx) * {array}[y1 * {size} + x0] + fx * {array}[y1 * {size} + x1])")
+        src += f"    return {read};\n" if len(tables) == 1 else f"    {array.split('_')[-1].lower()} = {read};\n"
+    return src + "}\n\n"
 
 
 def neural_osl_source(tensors: dict[str, np.ndarray]) -> str:

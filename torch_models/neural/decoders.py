@@ -30,7 +30,8 @@ def build_decoder(config: Mapping[str, Any]) -> AnyDecoder:
     if kind_of(config) == "hybrid":
         floor = config.get("lobe_alpha_floor", (1e-3, 1e-3))[-1]
         return HybridDecoder(config.get("lobes", 3), config.get("head_width", 32), config.get("gate_width", 32),
-                             config.get("gate_depth", 2), floor, config.get("unit_lobes", False))
+                             config.get("gate_depth", 2), floor, config.get("unit_lobes", False),
+                             config.get("sheen", False))
     return Decoder(config["width"], config["depth"], config.get("encoding", "half"))
 
 

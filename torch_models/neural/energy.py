@@ -204,7 +204,7 @@ def bound_furnace(model: NeuralModel, z: Tensor) -> Furnace:
         for mu in VIEW_COSINES:
             weights = dec.head_at(z, view_directions(torch.full((len(z), 1), mu))).weights
             rows.append(weights[:, :-1].sum(-1))
-            ts.append(weights[:, dec.lobes + 1])
+            ts.append(weights[:, dec.t_slot])
     bound = torch.stack(rows, 1).clamp(max=1.0)  # < 1 exactly; a float32 softmax sums to 1 +- rounding
     return Furnace(bound, torch.zeros_like(bound), torch.stack(ts, 1), bound.clone())
 

@@ -6,18 +6,22 @@ metals badly and half its latents gain energy. Here the peaks are closed-form:
 
 * **head** (latent and the view cosine, once per shading point and view): K isotropic
   GGX lobes, each with its alpha and an RGB Schlick F0, a diffuse lobe with an RGB
-  colour, softmax weights over K + 3 slots (the K GGX lobes, the diffuse lobe, the
-  transmittance T to the diffuse base and an absorbed slot: a weight that follows the
-  view angle is how a coat's Fresnel moves energy between its peak and the base) and
-  R(wi) for the renderer's sampling split;
+  colour, optionally a sheen lobe (Cycles' LTC sheen, normalised to unit albedo, with
+  its roughness and an RGB colour: dust and fuzz scatter towards grazing angles, which
+  a gated Lambertian cannot), softmax weights over the lobes' slots, the transmittance
+  T to the diffuse base and an absorbed slot (a weight that follows the view angle is
+  how a coat's Fresnel moves energy between its peak and the base) and R(wi) for the
+  renderer's sampling split;
 * **gates** (latent and both directions): per-lobe RGB factors in [0, 1] that shape
   each lobe (layering, haze, coat tint, dust, Fresnel beyond Schlick).
 
     f_neu cos = sum_k w_k(wi) g_k(wi, wo) F_k(wi.h) D_k G2_k / (4 cos_i)
-                + w_d(wi) g_d(wi, wo) c_d cos_o / pi,          T(wi) = w_T(wi)
+                + w_d(wi) g_d(wi, wo) c_d cos_o / pi
+                + w_s(wi) g_s(wi, wo) c_s LTC(wo; wi, r_s),     T(wi) = w_T(wi)
 
-Single-scatter Smith GGX with F <= 1 has albedo <= 1, so does the Lambertian with
-c_d <= 1, and gates only remove energy: albedo(f_neu) + T <= 1 - w_absorbed < 1 for
+Single-scatter Smith GGX with F <= 1 has albedo <= 1, so do the Lambertian with
+c_d <= 1 and the sheen's LTC (a distribution over the sphere, cut at the horizon),
+and gates only remove energy: albedo(f_neu) + T <= 1 - w_absorbed < 1 for
 every latent and view direction, with no furnace to repair anything (unit lobes: see
 ``HybridDecoder.bounded``). A half metal is
 a metal lobe and a dielectric lobe in proportion, linear in the weights.
@@ -37,6 +41,7 @@ from torch import Tensor, nn
 from ..brdf.frame import cos_theta, safe_normalize, sin2_theta
 from ..brdf import tables
 from ..brdf.ggx import ggx_pdf, ggx_sample
+from ..brdf.lobes import SHEEN_ROUGHNESS_MIN, sheen_pdf, sheen_sample
 from ..brdf.model import luminance
 from .networks import LATENT, direction_features, mlp
 
@@ -60,12 +65,15 @@ def view_features(cos_i: Tensor) -> Tensor:
 @dataclass
 class Lobes:
     """What the head predicts at N (latent, view) points: GGX alphas (N, K), Schlick F0s
-    (N, K, 3), the diffuse lobe's colour (N, 3), slot weights (N, K + 3: the GGX lobes,
-    diffuse, T, absorbed; they sum to 1) and R (N, 1)."""
+    (N, K, 3), the diffuse lobe's colour (N, 3), the sheen's roughness (N, 1) and colour
+    (N, 3) (zero-width without a sheen), slot weights (N, K + 3 + S: the GGX lobes,
+    diffuse, the sheen when S = 1, T, absorbed; they sum to 1) and R (N, 1)."""
 
     alpha: Tensor
     f0: Tensor
     diffuse: Tensor
+    sheen_roughness: Tensor
+    sheen: Tensor
     weights: Tensor
     r: Tensor
 
@@ -87,16 +95,19 @@ class HybridDecoder(nn.Module):
     kind = "hybrid"
 
     def __init__(self, lobes: int = 3, width: int = 32, gate_width: int = 32, gate_depth: int = 2,
-                 alpha_floor: float = 1e-3, unit_lobes: bool = False) -> None:
+                 alpha_floor: float = 1e-3, unit_lobes: bool = False, sheen: bool = False) -> None:
         super().__init__()
         self.lobes, self.width, self.gate_width, self.gate_depth = lobes, width, gate_width, gate_depth
-        self.unit_lobes = unit_lobes
+        self.unit_lobes, self.sheen = unit_lobes, sheen
+        self.t_slot = lobes + 1 + sheen  # slots: K GGX lobes, diffuse, [sheen], T, absorbed
         if unit_lobes:  # each GGX lobe divided by its albedo, so slot weights are energies; the table
             # travels in the weights file, so the preview shader reads the same one
             self.register_buffer("ggx_e", upper_table())
-        # per lobe an alpha logit and F0 rgb; diffuse rgb; slot logits (K + 3); R
-        self.head = mlp(LATENT + 3, width, 2, 5 * lobes + 7)
-        self.gates = mlp(LATENT + 10, gate_width, gate_depth, 3 * (lobes + 1))
+        # per lobe an alpha logit and F0 rgb; diffuse rgb; [sheen roughness and rgb]; slot logits; R
+        self.head = mlp(LATENT + 3, width, 2, 4 * lobes + 3 + 4 * sheen + self.t_slot + 2 + 1)
+        self.gates = mlp(LATENT + 10, gate_width, gate_depth, 3 * (lobes + 1 + sheen))
+        if sheen:  # Cycles' LTC table (A, B), so the preview shader needs nothing but the weights file
+            self.register_buffer("sheen_ltc", tables.table("sheen_ltc", torch.device("cpu"), torch.float32)[:2].clone())
         self.register_buffer("alpha_floor", torch.tensor(float(alpha_floor)))
         with torch.no_grad():  # spread the lobes over the roughness range from the start
             bias = self.head[-1].bias
@@ -115,22 +126,25 @@ class HybridDecoder(nn.Module):
 
     def head_at(self, latent: Tensor, wi: Tensor) -> Lobes:
         """The lobes at (latent, wi): once per shading point and view direction."""
-        k = self.lobes
+        k, s = self.lobes, 4 * self.sheen
         o = self.head(torch.cat([latent, view_features(cos_theta(wi))], -1))
         alpha = torch.exp(LOG_ALPHA_MIN * (1.0 - torch.sigmoid(o[:, :k])))
         alpha = (alpha.square() + self.alpha_floor.square()).sqrt()
+        sheen = torch.sigmoid(o[:, 4 * k + 3:4 * k + 3 + s])
+        roughness = SHEEN_ROUGHNESS_MIN + (1.0 - SHEEN_ROUGHNESS_MIN) * sheen[:, :1]
         return Lobes(alpha, torch.sigmoid(o[:, k:4 * k]).reshape(-1, k, 3), torch.sigmoid(o[:, 4 * k:4 * k + 3]),
-                     softmax(o[:, 4 * k + 3:-1]), torch.sigmoid(o[:, -1:]))
+                     roughness, sheen[:, 1:], softmax(o[:, 4 * k + 3 + s:-1]), torch.sigmoid(o[:, -1:]))
 
     def forward(self, latent: Tensor, wi: Tensor, wo: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         lobes = self.head_at(latent, wi)
-        return self.lobe_sum(lobes, latent, wi, wo), lobes.weights[:, self.lobes + 1:self.lobes + 2], lobes.r
+        return self.lobe_sum(lobes, latent, wi, wo), lobes.weights[:, self.t_slot:self.t_slot + 1], lobes.r
 
     def lobe_sum(self, lobes: Lobes, latent: Tensor, wi: Tensor, wo: Tensor) -> Tensor:
         """f_neu cos (N, 3) of the predicted lobes, gated: all K GGX lobes at once, sharing the
         half vector and the Schlick term (the same D, G2 as ``ggx.ggx_single_scatter``)."""
         k = self.lobes
-        gates = torch.sigmoid(self.gates(torch.cat([latent, direction_features(wi, wo)], -1))).reshape(-1, k + 1, 3)
+        gates = torch.sigmoid(self.gates(torch.cat([latent, direction_features(wi, wo)], -1)))
+        gates = gates.reshape(-1, k + 1 + self.sheen, 3)
         h = safe_normalize(wi + wo)
         a2 = lobes.alpha.square()  # (N, K)
         cos_i, cos_o = cos_theta(wi).clamp(min=1e-12), cos_theta(wo).clamp(min=1e-12)
@@ -144,6 +158,9 @@ class HybridDecoder(nn.Module):
         fresnel = lobes.f0 + (1.0 - lobes.f0) * schlick[:, :, None]  # (N, K, 3)
         glossy = (single[:, :, None] * fresnel * gates[:, :k]).sum(1)
         diffuse = (lobes.weights[:, k:k + 1] / math.pi) * cos_o * lobes.diffuse * gates[:, k]
+        if self.sheen:  # the LTC's density: the sheen divided by its albedo
+            unit = sheen_pdf(wi, wo, lobes.sheen_roughness)
+            diffuse = diffuse + lobes.weights[:, k + 1:k + 2] * unit * lobes.sheen * gates[:, k + 1]
         above = (cos_theta(wi) > 0) & (cos_theta(wo) > 0)
         return torch.where(above, glossy + diffuse, torch.zeros_like(glossy))
 
@@ -160,36 +177,45 @@ class HybridDecoder(nn.Module):
 class LobeSampler:
     """Exact importance sampling of a hybrid decoder's own lobes (gates left out): the
     component is chosen by weight times an albedo estimate, a GGX lobe by its visible
-    normals, the diffuse lobe by cosine. Same interface as ``networks.SamplingDecoder``."""
+    normals, the diffuse lobe by cosine, the sheen by its LTC. Same interface as
+    ``networks.SamplingDecoder``."""
 
     def __init__(self, decoder: HybridDecoder) -> None:
         self.decoder = decoder
 
-    def components(self, latent: Tensor, wi: Tensor) -> tuple[Tensor, Tensor]:
-        """Probabilities (N, K + 1) of the GGX lobes and the diffuse lobe, and the alphas (N, K)."""
+    def components(self, latent: Tensor, wi: Tensor) -> tuple[Tensor, Lobes]:
+        """Probabilities (N, K + 1 [+ 1]) of the GGX lobes, the diffuse lobe [and the sheen], and the lobes."""
         k = self.decoder.lobes
         lobes = self.decoder.head_at(latent, wi)
         schlick = (1.0 - cos_theta(wi).clamp(0.0, 1.0)) ** 5
         f0 = luminance(lobes.f0)[..., 0]
         glossy = lobes.weights[:, :k] * (f0 + (1.0 - f0) * schlick)
         diffuse = lobes.weights[:, k:k + 1] * luminance(lobes.diffuse)
-        p = torch.cat([glossy, diffuse], -1) + 1e-6
-        return p / p.sum(-1, keepdim=True), lobes.alpha
+        parts = [glossy, diffuse]
+        if self.decoder.sheen:
+            parts.append(lobes.weights[:, k + 1:k + 2] * luminance(lobes.sheen))
+        p = torch.cat(parts, -1) + 1e-6
+        return p / p.sum(-1, keepdim=True), lobes
 
     def pdf(self, latent: Tensor, wi: Tensor, wo: Tensor) -> Tensor:
-        p, alpha = self.components(latent, wi)
-        k = alpha.shape[1]
+        p, lobes = self.components(latent, wi)
+        k = self.decoder.lobes
         out = p[:, k] * wo[:, 2].clamp(min=0.0) / math.pi
         for j in range(k):
-            out = out + p[:, j] * ggx_pdf(wi, wo, alpha[:, j:j + 1])[:, 0]
+            out = out + p[:, j] * ggx_pdf(wi, wo, lobes.alpha[:, j:j + 1])[:, 0]
+        if self.decoder.sheen:
+            out = out + p[:, k + 1] * sheen_pdf(wi, wo, lobes.sheen_roughness)[:, 0]
         return out * (wo[:, 2] > 0)
 
     def sample(self, latent: Tensor, wi: Tensor, u: Tensor) -> Tensor:
         """u (N, 3): u[:, 0] picks the component, u[:, 1:] samples it."""
-        p, alpha = self.components(latent, wi)
-        k = alpha.shape[1]
-        choice = (u[:, :1] >= p.cumsum(-1)).sum(-1, keepdim=True).clamp(max=k)  # (N, 1); k is the diffuse lobe
-        glossy = ggx_sample(wi, alpha.gather(1, choice.clamp(max=k - 1)), u[:, 1:3])
+        p, lobes = self.components(latent, wi)
+        k, last = self.decoder.lobes, p.shape[1] - 1
+        choice = (u[:, :1] >= p.cumsum(-1)).sum(-1, keepdim=True).clamp(max=last)  # (N, 1); k: diffuse, k + 1: sheen
+        glossy = ggx_sample(wi, lobes.alpha.gather(1, choice.clamp(max=k - 1)), u[:, 1:3])
         r, phi = u[:, 1:2].sqrt(), 2.0 * math.pi * u[:, 2:3]
         cosine = torch.cat([r * phi.cos(), r * phi.sin(), (1.0 - u[:, 1:2]).clamp(min=0.0).sqrt()], -1)
-        return torch.where(choice < k, glossy, cosine)
+        out = torch.where(choice < k, glossy, cosine)
+        if self.decoder.sheen:
+            out = torch.where(choice == k + 1, sheen_sample(wi, lobes.sheen_roughness, u[:, 1:3]), out)
+        return out

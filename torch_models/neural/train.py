@@ -62,6 +62,7 @@ class TrainConfig:
     gate_depth: int = 2
     lobe_alpha_floor: tuple[float, float] = (0.05, 1e-3)  # hybrid: the lobes' alpha floor, annealed from, to
     unit_lobes: bool = False  # hybrid: GGX lobes normalised to unit albedo (hybrid.HybridDecoder)
+    sheen: bool = False  # hybrid: a unit-albedo LTC sheen lobe beside the GGX and diffuse lobes
     anneal: float = 0.6  # hybrid: share of the decoder phase over which the floor falls (geometrically)
     encoding: str = "half"  # decoder direction encoding (networks.DIRECTION_ENCODINGS)
     pool: int = 20_000  # distinct parameter vectors drawn from the enhancement rules
