@@ -77,6 +77,7 @@ def prepare(asset: Path, work: Path, args: argparse.Namespace) -> Path:
     """Prepare and fit one asset once (not timed): the input of every render below."""
     from batch.assets import asset_id
     from richmat_addon.core.enhancement_plan import asset_type
+    from batch.options import DEFAULT_CLUSTER_STEP
     from batch.pipeline import default_commands
 
     commands = default_commands(None, None)
@@ -90,7 +91,8 @@ def prepare(asset: Path, work: Path, args: argparse.Namespace) -> Path:
                                "--type", str(asset_type(aid, 0)), "--seed", "0",
                                "--max-texture", str(args.max_texture)]), folder / "logs" / "prepare")
     _run(commands.fit_job(["--work", str(folder), "--decoder", str(args.decoder), "--steps",
-                           str(args.fit_steps), "--threads", str(args.threads)]), folder / "logs" / "fit")
+                           str(args.fit_steps), "--cluster-step", repr(DEFAULT_CLUSTER_STEP),
+                           "--threads", str(args.threads)]), folder / "logs" / "fit")
     return folder
 
 
