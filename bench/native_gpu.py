@@ -13,11 +13,12 @@ EEVEE's render is closer to the Cycles reference than to that grey.
 
     python -m bench.native_gpu [--per-type N] [--out FILE.json]
 
-Where the GPU machine has bpy but not torch, split the run: ``--jobs DIR``
-writes DIR/cpu/job.json and DIR/gpu/job.json (paths relative to the repository)
-and stops; ``python -m bench.native_agreement_cycles DIR/gpu/job.json`` renders
-the GPU half there and the CPU half here, from the repository root; then
-``--renders DIR`` compares them. Not run on the 2-core CPU machine the other
+Where the GPU machine lacks torch or bpy, split the run: ``--jobs DIR`` writes
+DIR/cpu/job.json and DIR/gpu/job.json (paths relative to the repository) and
+stops; ``python -m bench.native_agreement_cycles DIR/gpu/job.json`` renders the
+GPU half there (``tools/bpy_bundle.sh`` carries bpy to a machine without it)
+and the CPU half here, from the repository root; then ``--renders DIR``
+compares them. Not run on the 2-core CPU machine the other
 benches use; see docs/backends.md.
 """
 from __future__ import annotations
