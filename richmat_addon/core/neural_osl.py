@@ -236,18 +236,28 @@ void setup(float z[6], vector wi, output float s[STATE])
 #if SHEEN
 // lobes.sheen_pdf: Cycles' LTC sheen divided by its albedo, in the frame whose x axis is wi's tangential
 // direction; A clamped as for sampling
-vector sheen_local(vector wi, vector w)
+vector wi_tangent(vector wi)  // frame.tangent_frame: wi's tangential direction, x when wi is the normal
 {
     float len = hypot(wi[0], wi[1]);
-    float tx = len > 1e-7 ? wi[0] / len : 1.0, ty = len > 1e-7 ? wi[1] / len : 0.0;
-    return vector(tx * w[0] + ty * w[1], -ty * w[0] + tx * w[1], w[2]);
+    return len > 1e-7 ? vector(wi[0] / len, wi[1] / len, 0.0) : vector(1.0, 0.0, 0.0);
+}
+
+vector sheen_local(vector wi, vector w)
+{
+    vector t = wi_tangent(wi);
+    return vector(t[0] * w[0] + t[1] * w[1], -t[1] * w[0] + t[0] * w[1], w[2]);
+}
+
+void sheen_ab(float s[STATE], vector wi, output float a, output float b)  // the LTC at wi, A as sampled
+{
+    sheen_ltc(s[SHEEN_R], wi[2], a, b);
+    a = max(a, SHEEN_DROP);
 }
 
 float sheen_density(float s[STATE], vector wi, vector wo)
 {
     float a, b;
-    sheen_ltc(s[SHEEN_R], wi[2], a, b);
-    a = max(a, SHEEN_DROP);
+    sheen_ab(s, wi, a, b);
     vector l = sheen_local(wi, wo);
     float len_sq = (a * l[0] + b * l[2]) * (a * l[0] + b * l[2]) + (a * l[1]) * (a * l[1]) + l[2] * l[2];
     float q = a / max(len_sq, 1e-30);
@@ -257,14 +267,12 @@ float sheen_density(float s[STATE], vector wi, vector wo)
 vector sheen_sample(float s[STATE], vector wi, float u1, float u2)
 {
     float a, b;
-    sheen_ltc(s[SHEEN_R], wi[2], a, b);
-    a = max(a, SHEEN_DROP);
+    sheen_ab(s, wi, a, b);
     float r = sqrt(u1), phi = M_2PI * u2;
     float dx = r * cos(phi), dy = r * sin(phi), dz = sqrt(max(1.0 - u1, 0.0));
     vector l = normalize(vector(dx - dz * b, dy, dz * a));
-    float len = hypot(wi[0], wi[1]);
-    float tx = len > 1e-7 ? wi[0] / len : 1.0, ty = len > 1e-7 ? wi[1] / len : 0.0;
-    return vector(tx * l[0] - ty * l[1], ty * l[0] + tx * l[1], l[2]);
+    vector t = wi_tangent(wi);
+    return vector(t[0] * l[0] - t[1] * l[1], t[1] * l[0] + t[0] * l[1], l[2]);
 }
 #endif
 
