@@ -16,25 +16,28 @@ scene.richmat.output_dir = OUT
 meshes = [o for o in scene.objects if o.type == "MESH"]
 originals = sorted({s.material.name for o in meshes for s in o.material_slots if s.material})
 before = render(48, 8)
-timings = {}
-for obj in meshes:
-    bpy.context.view_layer.objects.active = obj
-    t = time.process_time()  # CPU time: wall time on a loaded machine measures the neighbours
-    res, err = run_op("uplift_material")
-    timings[obj.name] = time.process_time() - t
-    assert res == {"FINISHED"}, (obj.name, err)
+
+
+def on_each_mesh(op):
+    """Run the operator with each mesh active; its CPU seconds per mesh (wall time on a loaded machine
+    measures the neighbours)."""
+    seconds = {}
+    for obj in meshes:
+        bpy.context.view_layer.objects.active = obj
+        t = time.process_time()
+        res, err = run_op(op)
+        seconds[obj.name] = time.process_time() - t
+        assert res == {"FINISHED"}, (obj.name, op, err)
+    return seconds
+
+
+timings = on_each_mesh("uplift_material")
 after = render(48, 8)  # Cycles on the CPU with OSL off (the SVM path of every GPU): the native graph
 scene.cycles.shading_system = True
-for obj in meshes:
-    bpy.context.view_layer.objects.active = obj
-    res, err = run_op("toggle_cycles_graph")
-    assert res == {"FINISHED"}, (obj.name, err)
+on_each_mesh("toggle_cycles_graph")
 exact = render(48, 8)  # the same materials through their OSL shaders
 pink = lambda rgb: float(((rgb[..., 0] > 0.8) & (rgb[..., 1] < 0.1) & (rgb[..., 2] > 0.8)).mean())
-for obj in meshes:
-    bpy.context.view_layer.objects.active = obj
-    res, err = run_op("bake_parameters")
-    assert res == {"FINISHED"}, (obj.name, err)
+on_each_mesh("bake_parameters")
 bpy.context.view_layer.objects.active = meshes[0]
 res, err = run_op("export_materialx", directory=OUT + "_mtlx")
 assert res == {"FINISHED"}, err
