@@ -186,12 +186,12 @@ def test_energy_guard_darkens_only_the_texels_that_gain_energy() -> None:
     from torch_models.generator.generate import energy_guard
     from torch_models.neural import energy, weights
 
-    model = weights.load()
+    model = weights.load(weights.BASELINE)  # the MLP kind: the shipped hybrid cannot gain energy
     box = torch.rand(128, 6, generator=torch.Generator().manual_seed(0)) * 2.2 - 1.1
     check = energy.furnace(model, box)
     gaining, bounded = box[check.failing][0], box[~check.failing][0]
     texture = torch.stack([bounded] * 15 + [gaining]).reshape(4, 4, 6).numpy()
-    scale = energy_guard(texture)
+    scale = energy_guard(texture, model)
     assert scale.shape == (4, 4) and (scale.reshape(-1)[:15] == 1).all() and 0 < scale.reshape(-1)[15] < 1
     fresh = energy.furnace(model, torch.from_numpy(texture.reshape(-1, 6)), seed=3,
                         energy_scale=torch.from_numpy(scale.reshape(-1)))
@@ -205,7 +205,7 @@ def test_energy_guard_holds_the_quadrature_to_one_below_the_fits_tolerance() -> 
     from torch_models.neural import energy, quadrature, weights
     from torch_models.neural.data import parameter_vectors
 
-    model = weights.load()
+    model = weights.load(weights.BASELINE)  # the MLP kind: the shipped hybrid cannot gain energy
     with torch.no_grad():
         z = model.encoder(torch.from_numpy(parameter_vectors(256, np.random.default_rng(0))))
     sums = quadrature.half_vector_albedo(model, z)
@@ -213,7 +213,7 @@ def test_energy_guard_holds_the_quadrature_to_one_below_the_fits_tolerance() -> 
     pick = ((albedo > 1.0) & (albedo <= 1.0 + energy.QUADRATURE_TOLERANCE)).nonzero(as_tuple=True)[0][:4]
     near, near_sums = z[pick], sums[pick]
     assert len(near) == 4 and not energy.furnace(model, near, quadrature=near_sums).failing.any()  # the fit's check
-    scale = torch.from_numpy(energy_guard(near.numpy()[None]).reshape(-1))
+    scale = torch.from_numpy(energy_guard(near.numpy()[None], model).reshape(-1))
     assert (scale < 1).all()
     assert (near_sums.albedo(scale).max(1).values <= 1.0 + 1e-6).all()
 

@@ -7,7 +7,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 import torch
@@ -27,6 +27,9 @@ from .projection import Projection, project, rim_trust
 from .train import GeneratorTrainConfig
 from .views import (ELEVATION_DEG, Cameras, IntrinsicViews, Mesh, Textures, direction, look_at, per_material,
                     render_intrinsics)
+
+if TYPE_CHECKING:
+    from ..neural.weights import NeuralModel
 
 SHIPPED = Path(__file__).resolve().parent / "weights"
 SEEN_WARNING = 0.5  # below this share of directly seen texels the result is mostly inpainted: say so
@@ -230,17 +233,17 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     return generation
 
 
-def energy_guard(latents: np.ndarray) -> np.ndarray:
+def energy_guard(latents: np.ndarray, model: NeuralModel | None = None) -> np.ndarray:
     """(H, W) f_neu scale per texel that keeps every texel inside the white furnace.
 
-    Sampling and view averaging can land on latents that gain energy (with the shipped
-    decoder about half the texels sit just over the bound, as their references do):
-    ``energy.guard`` measures each distinct latent and darkens the ones that do, as ``fit``
-    repairs a fitted material."""
+    Sampling and view averaging can land on latents that gain energy when the decoder is not
+    bounded by construction (the MLP kind): ``energy.guard`` measures each distinct latent and
+    darkens the ones that do, as ``fit`` repairs a fitted material. A bounded decoder (the shipped
+    hybrid) needs no measurement: every scale is 1. ``model`` defaults to the shipped decoder."""
     from ..neural import energy, weights
 
     unique, inverse = np.unique(latents.reshape(-1, latents.shape[-1]), axis=0, return_inverse=True)
-    scale = energy.guard(weights.load(), torch.from_numpy(unique))
+    scale = energy.guard(model or weights.load(), torch.from_numpy(unique))
     return scale.numpy()[inverse.reshape(-1)].reshape(latents.shape[:2])
 
 

@@ -14,6 +14,7 @@ from .decoders import AnyDecoder, AnySampler, build_decoder, build_sampler
 from .networks import Encoder
 
 SHIPPED = Path(__file__).resolve().parent / "weights"
+BASELINE = SHIPPED / "mlp"  # the paper's direct 4 x 64 MLP, kept to measure the shipped decoder against
 
 
 @dataclass
