@@ -32,8 +32,8 @@ DEFAULT_PROBE = Path(__file__).resolve().parent / "data" / "studio_small_03_512.
 
 # Sizes of the default demo and of --full. The texture size, samples and steps cost time
 # without changing what the 160 px pictures show (docs in the README's demo lines).
-QUICK = {"size": 128, "spp": 32, "fit_steps": 100, "refit_steps": 20, "merge": 16, "generate_size": 16}
-FULL = {"size": 256, "spp": 64, "fit_steps": 300, "refit_steps": 150, "merge": 0, "generate_size": 32}
+QUICK = {"size": 128, "spp": 32, "fit_steps": 100, "refit_steps": 20, "merge": 16, "generate_size": 32}
+FULL = {"size": 256, "spp": 64, "fit_steps": 300, "refit_steps": 150, "merge": 0, "generate_size": 64}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -56,8 +56,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-neural", action="store_true", help="skip fitting the neural materials")
     parser.add_argument("--no-generate", action="store_true", help="skip generating materials from prompts")
     parser.add_argument("--generate-size", type=int,
-                        help="latent texture size of the generated materials; the energy guard's time grows with "
-                             f"its texels {sizes('generate_size')}")
+                        help="latent texture size of the generated materials; with a decoder that is not bounded "
+                             f"by construction the energy guard's time grows with its texels {sizes('generate_size')}")
     parser.add_argument("--view-size", type=int, default=256, help="generated.png's view size in pixels (default: 256)")
 
 
@@ -77,10 +77,12 @@ def run(args: argparse.Namespace) -> int:
     from .cli import InputError
     from .demo_render import analytic_at, captioned_row, render_balls, save_sheet, to_u8
 
+    from .neural import weights
+
     apply_sizes(args)
     if args.generate_size < 8:
         raise InputError("--generate-size must be >= 8")
-    progress = Progress(expected_seconds(args))
+    progress = Progress(expected_seconds(args, bounded=weights.load().decoder.bounded))
     progress.start("enhance")
     pbr = chipped_paint(args.size)
     normals, positions = sphere_texel_geometry(args.size, args.size)
@@ -132,7 +134,7 @@ def fit_and_compare(args: argparse.Namespace, materials: list, analytic: list,  
         vectors = [merge_vectors(v, 1.0 / args.merge) for v in vectors]
     pool, rows = np.unique(np.concatenate([v.unique for v in vectors]), axis=0, return_inverse=True)
     per_type = np.split(rows.ravel(), np.cumsum([len(v.unique) for v in vectors])[:-1])
-    progress.reweigh("energy guard", expected_seconds(args, len(pool))["energy guard"])
+    progress.reweigh("energy guard", expected_seconds(args, len(pool), model.decoder.bounded)["energy guard"])
     progress.start("fit neural materials")
     progress.write(f"fitting the {len(pool)} distinct texel vectors of Types 0-5 with the shipped decoder")
     z = fitting.fit_latents(model, pool, args.fit_steps, seed=args.seed,
@@ -204,8 +206,8 @@ def generate_from_prompts(out: Path, seed: int, texture_size: int, view_size: in
     """The paper's Fig. 8 on a mesh training never saw: one object, prompts naming different enhancements,
     each row of generated.png under its prompt and the type the prompt chose.
 
-    A ``texture_size`` texture (what the generator's 32 px views resolve) keeps the energy guard,
-    which measures every distinct texel, to seconds; the views are rendered at ``view_size``."""
+    The latents are ``texture_size`` texels a side (the shipped decoder needs no energy guard; with one
+    that does, its time grows with the texels); the views are rendered at ``view_size``."""
     import json
 
     import numpy as np
@@ -253,13 +255,14 @@ FIT_STEP_SECONDS = 0.02
 FURNACE_SECONDS_PER_VECTOR = 0.023
 REFIT_STEP_SECONDS = 1.5  # with REFIT_LATENTS latents failing the furnace (about 40 % of the vectors fail)
 PROMPT_SECONDS = 16.0  # sampling and projection of one prompt
-GUARD_SECONDS_PER_TEXEL = 0.083  # the energy guard of a generated texel
+GUARD_SECONDS_PER_TEXEL = 0.083  # the energy guard of a generated texel (a decoder not bounded by construction)
 PREVIEW_SECONDS_PER_SAMPLE = 1.8e-6
 
 
-def expected_seconds(args: argparse.Namespace, vectors: int = 1000) -> dict[str, float]:
-    """Each stage's expected cost at the run's sizes: the progress line's weights. The energy
-    guard's grows with the ``vectors`` fitted, guessed until the types are made."""
+def expected_seconds(args: argparse.Namespace, vectors: int = 1000, bounded: bool = True) -> dict[str, float]:
+    """Each stage's expected cost at the run's sizes: the progress line's weights. A decoder
+    bounded by construction needs no furnace or guard; otherwise the energy stage grows with
+    the ``vectors`` fitted, guessed until the types are made."""
     from .neural.energy import REFIT_LATENTS
 
     ball = args.resolution ** 2 * args.spp
@@ -268,11 +271,11 @@ def expected_seconds(args: argparse.Namespace, vectors: int = 1000) -> dict[str,
     if not args.no_neural:
         refitted = min(0.4 * vectors, REFIT_LATENTS) / REFIT_LATENTS
         stages["fit neural materials"] = FIT_TARGET_SECONDS + args.fit_steps * FIT_STEP_SECONDS
-        stages["energy guard"] = (vectors * FURNACE_SECONDS_PER_VECTOR
-                                  + args.refit_steps * refitted * REFIT_STEP_SECONDS)
+        stages["energy guard"] = 0.0 if bounded else (vectors * FURNACE_SECONDS_PER_VECTOR
+                                                      + args.refit_steps * refitted * REFIT_STEP_SECONDS)
         stages["render neural vs analytic"] = 6 * ball * NEURAL_SECONDS_PER_SAMPLE
     if not args.no_generate:
-        prompt = (PROMPT_SECONDS + args.generate_size ** 2 * GUARD_SECONDS_PER_TEXEL
+        prompt = (PROMPT_SECONDS + (0.0 if bounded else args.generate_size ** 2 * GUARD_SECONDS_PER_TEXEL)
                   + 2 * args.view_size ** 2 * PREVIEW_SPP * PREVIEW_SECONDS_PER_SAMPLE)
         stages["generate from prompts"] = len(DEMO_PROMPT_ENDINGS) * prompt
     return stages

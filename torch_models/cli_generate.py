@@ -57,13 +57,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--guidance", type=float, default=2.0, help="classifier-free guidance scale (default: 2)")
     parser.add_argument("--texture-size", type=int, default=DEFAULT_TEXTURE_SIZE,
                         help=f"largest side of a material's latent texture in texels; each follows its own "
-                             f"maps' size up to this (default: {DEFAULT_TEXTURE_SIZE}: the energy guard's cost "
-                             "grows with the texels)")
+                             f"maps' size up to this (default: {DEFAULT_TEXTURE_SIZE})")
     parser.add_argument("--checkpoint", type=Path, default=None,
                         help="a train-generator run folder (default: the shipped generator)")
     parser.add_argument("--no-preview", action="store_true", help="skip the preview render")
     parser.add_argument("--no-energy-guard", action="store_true",
-                        help="skip the energy guard (about 40 ms per texel on one thread); texels may then gain energy")
+                        help="skip the energy guard, which only a decoder not bounded by construction needs (the MLP "
+                             "kind, about 40 ms per texel on one thread; the shipped hybrid needs none)")
     parser.add_argument("--material", type=Path, default=None,
                         help="a baked enhanced-material folder whose base colour replaces the mesh file's "
                              "(and whose metalness keeps fuzz/scattering off metals)")
