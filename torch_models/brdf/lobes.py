@@ -25,7 +25,7 @@ from .fresnel import (conductor_fss, dielectric_fss, f0_from_ior, fresnel_conduc
 from .ggx import both_above, clamp_alpha, ggx_pdf, ggx_sample, ggx_single_scatter
 
 __all__ = [
-    "sheen_eval", "sheen_albedo", "sheen_sample", "sheen_pdf",
+    "sheen_eval", "sheen_albedo", "sheen_sample", "sheen_pdf", "sheen_pdf_setup", "sheen_pdf_at",
     "dielectric_eval", "dielectric_albedo", "conductor_eval", "conductor_albedo",
     "ggx_sample", "ggx_pdf", "gulbrandsen", "multi_ggx_factor",
 ]
@@ -96,9 +96,19 @@ def sheen_sample(wi: Tensor, roughness: Tensor, u: Tensor) -> Tensor:
 
 def sheen_pdf(wi: Tensor, wo: Tensor, roughness: Tensor) -> Tensor:
     """Solid-angle density of ``sheen_sample``, (..., 1); integrates to 1."""
+    return sheen_pdf_at(wo, sheen_pdf_setup(wi, roughness))
+
+
+def sheen_pdf_setup(wi: Tensor, roughness: Tensor) -> Tensor:
+    """(..., 8) what ``sheen_pdf`` reads at wi: the LTC's A and B and wi's tangent frame.
+    It depends on wi alone, so a shading point computes it once for all its wo."""
     a, b, _, _ = _sheen_setup(wi, roughness)
-    t, bt = tangent_frame(wi)
-    return _ltc_density(to_local(wo, t, bt), _sampling_a(a), b)
+    return torch.cat([_sampling_a(a), b, *tangent_frame(wi)], -1)
+
+
+def sheen_pdf_at(wo: Tensor, setup: Tensor) -> Tensor:
+    """``sheen_pdf`` at wo from its ``sheen_pdf_setup``, (..., 1)."""
+    return _ltc_density(to_local(wo, setup[..., 2:5], setup[..., 5:8]), setup[..., 0:1], setup[..., 1:2])
 
 
 # ---- multi_ggx energy preservation -------------------------------------------------

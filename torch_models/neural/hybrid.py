@@ -41,7 +41,7 @@ from torch import Tensor, nn
 from ..brdf.frame import cos_theta, safe_normalize, sin2_theta
 from ..brdf import tables
 from ..brdf.ggx import ggx_pdf, ggx_sample
-from ..brdf.lobes import SHEEN_ROUGHNESS_MIN, sheen_pdf, sheen_sample
+from ..brdf.lobes import SHEEN_ROUGHNESS_MIN, sheen_pdf_at, sheen_pdf_setup, sheen_sample
 from ..brdf.model import luminance
 from .networks import LATENT, direction_features, mlp
 
@@ -67,7 +67,12 @@ class Lobes:
     """What the head predicts at N (latent, view) points: GGX alphas (N, K), Schlick F0s
     (N, K, 3), the diffuse lobe's colour (N, 3), the sheen's roughness (N, 1) and colour
     (N, 3) (zero-width without a sheen), slot weights (N, K + 3 + S: the GGX lobes,
-    diffuse, the sheen when S = 1, T, absorbed; they sum to 1) and R (N, 1)."""
+    diffuse, the sheen when S = 1, T, absorbed; they sum to 1) and R (N, 1).
+
+    Then what the lobes' evaluation needs of wi alone, so that a shading point computes it
+    once for all its wo: each GGX lobe's weight over 4 cos θi (and its albedo, for unit
+    lobes) (N, K), its Smith Λ(wi) (N, K), and the sheen's ``sheen_pdf_setup`` (N, 8; zero-width
+    without a sheen)."""
 
     alpha: Tensor
     f0: Tensor
@@ -76,6 +81,9 @@ class Lobes:
     sheen: Tensor
     weights: Tensor
     r: Tensor
+    ggx_scale: Tensor
+    lambda_i: Tensor
+    sheen_setup: Tensor
 
     def repeat(self, m: int) -> "Lobes":
         """Each point's lobes for m directions in a row (a shading point's many wo)."""
@@ -132,8 +140,15 @@ class HybridDecoder(nn.Module):
         alpha = (alpha.square() + self.alpha_floor.square()).sqrt()
         sheen = torch.sigmoid(o[:, 4 * k + 3:4 * k + 3 + s])
         roughness = SHEEN_ROUGHNESS_MIN + (1.0 - SHEEN_ROUGHNESS_MIN) * sheen[:, :1]
+        weights = softmax(o[:, 4 * k + 3 + s:-1])
+        a2, cos_i = alpha.square(), cos_theta(wi).clamp(min=1e-12)
+        lambda_i = 0.5 * ((1.0 + a2 * sin2_theta(wi) / cos_i.square()).sqrt() - 1.0)
+        scale = weights[:, :k] / (4.0 * cos_i)
+        if self.unit_lobes:
+            scale = scale / tables.lookup(self.ggx_e, alpha.sqrt(), cos_theta(wi).clamp(0.0, 1.0)).clamp(min=E_MIN)
+        setup = sheen_pdf_setup(wi, roughness) if self.sheen else wi[:, :0]
         return Lobes(alpha, torch.sigmoid(o[:, k:4 * k]).reshape(-1, k, 3), torch.sigmoid(o[:, 4 * k:4 * k + 3]),
-                     roughness, sheen[:, 1:], softmax(o[:, 4 * k + 3 + s:-1]), torch.sigmoid(o[:, -1:]))
+                     roughness, sheen[:, 1:], weights, torch.sigmoid(o[:, -1:]), scale, lambda_i, setup)
 
     def forward(self, latent: Tensor, wi: Tensor, wo: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         lobes = self.head_at(latent, wi)
@@ -141,25 +156,23 @@ class HybridDecoder(nn.Module):
 
     def lobe_sum(self, lobes: Lobes, latent: Tensor, wi: Tensor, wo: Tensor) -> Tensor:
         """f_neu cos (N, 3) of the predicted lobes, gated: all K GGX lobes at once, sharing the
-        half vector and the Schlick term (the same D, G2 as ``ggx.ggx_single_scatter``)."""
+        half vector and the Schlick term (the same D, G2 as ``ggx.ggx_single_scatter``); what
+        depends on wi alone comes precomputed in ``lobes``."""
         k = self.lobes
         gates = torch.sigmoid(self.gates(torch.cat([latent, direction_features(wi, wo)], -1)))
         gates = gates.reshape(-1, k + 1 + self.sheen, 3)
         h = safe_normalize(wi + wo)
         a2 = lobes.alpha.square()  # (N, K)
-        cos_i, cos_o = cos_theta(wi).clamp(min=1e-12), cos_theta(wo).clamp(min=1e-12)
+        cos_o = cos_theta(wo).clamp(min=1e-12)
         d = a2 / (math.pi * (sin2_theta(h) + a2 * cos_theta(h).square()).square())
-        lambda_i = 0.5 * ((1.0 + a2 * sin2_theta(wi) / cos_i.square()).sqrt() - 1.0)
         lambda_o = 0.5 * ((1.0 + a2 * sin2_theta(wo) / cos_o.square()).sqrt() - 1.0)
-        single = d / ((1.0 + lambda_i + lambda_o) * 4.0 * cos_i) * lobes.weights[:, :k]  # (N, K)
-        if self.unit_lobes:
-            single = single / tables.lookup(self.ggx_e, lobes.alpha.sqrt(), cos_theta(wi).clamp(0.0, 1.0)).clamp(min=E_MIN)
+        single = d / (1.0 + lobes.lambda_i + lambda_o) * lobes.ggx_scale  # (N, K)
         schlick = (1.0 - (wi * h).sum(-1, keepdim=True).clamp(0.0, 1.0)) ** 5  # (N, 1)
         fresnel = lobes.f0 + (1.0 - lobes.f0) * schlick[:, :, None]  # (N, K, 3)
         glossy = (single[:, :, None] * fresnel * gates[:, :k]).sum(1)
         diffuse = (lobes.weights[:, k:k + 1] / math.pi) * cos_o * lobes.diffuse * gates[:, k]
         if self.sheen:  # the LTC's density: the sheen divided by its albedo
-            unit = sheen_pdf(wi, wo, lobes.sheen_roughness)
+            unit = sheen_pdf_at(wo, lobes.sheen_setup)
             diffuse = diffuse + lobes.weights[:, k + 1:k + 2] * unit * lobes.sheen * gates[:, k + 1]
         above = (cos_theta(wi) > 0) & (cos_theta(wo) > 0)
         return torch.where(above, glossy + diffuse, torch.zeros_like(glossy))
@@ -204,7 +217,7 @@ class LobeSampler:
         for j in range(k):
             out = out + p[:, j] * ggx_pdf(wi, wo, lobes.alpha[:, j:j + 1])[:, 0]
         if self.decoder.sheen:
-            out = out + p[:, k + 1] * sheen_pdf(wi, wo, lobes.sheen_roughness)[:, 0]
+            out = out + p[:, k + 1] * sheen_pdf_at(wo, lobes.sheen_setup)[:, 0]
         return out * (wo[:, 2] > 0)
 
     def sample(self, latent: Tensor, wi: Tensor, u: Tensor) -> Tensor:
