@@ -1,0 +1,176 @@
+"""Does the generator follow the prompt visibly? Prompt sensitivity and a gallery (issue 30, item 4).
+
+On held-out procedural dielectrics (as bench/generate_eval.py picks them; metals are
+left out, since fuzz and scattering fall back to dust on a metal), the object's PBR
+material is enhanced with each of Types 0, 1, 2 and 4 (the object's own draws),
+captioned as the corpus captions it, and generated from that caption. For each pair of
+prompts, the mean FLIP between the two generated materials' renders over the mean FLIP
+between their references' (the encoder's latents of the two enhanced materials): 1 when
+the generations differ as much as the references do, 0 when the wording changes nothing.
+The issue's target is 0.7. Each generation's PSNR against its own reference is reported
+beside it.
+
+Writes docs/reports/generate_prompts.json with its chart (.png: the ratio per pair of
+prompts) and docs/reports/generate_prompts_gallery.png (per object a reference row and a
+generated row, one labelled column per prompt).
+
+    python -m bench.generate_prompts [--objects N] [--seed S] [--checkpoint DIR]
+"""
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from bench.common import REPORTS, provenance, pyplot, save_chart, write_report
+from bench.generate_eval import held_out_indices, latents_of, psnr, render
+from richmat_addon.core.enhance import enhance, is_metallic
+from richmat_addon.core.enhancement_types import TYPES
+from richmat_addon.core.maps import ParamMap
+from torch_models.generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural
+from torch_models.generator import generate as gen
+from torch_models.generator.mesh_input import MeshInput
+from torch_models.neural import weights
+from torch_models.render.flip import mean_flip
+
+PROMPT_TYPES = (0, 1, 2, 4)  # haze, dust, clearcoat, inner scattering: what a dielectric can be asked for
+TARGET = 0.7
+
+
+def dielectric_indices(count: int, seed: int) -> list[int]:
+    """The first ``count`` held-out procedural objects whose material is not a metal."""
+    picked = []
+    for index in held_out_indices(10 * count, seed):
+        if not is_metallic(procedural.make_asset(index, 8, seed).pbr):
+            picked.append(index)
+        if len(picked) == count:
+            break
+    return picked
+
+
+def object_prompts(index: int, size: int, seed: int) -> tuple[procedural.ProceduralAsset, list[dict]]:
+    """The object and, per prompt type, its enhanced material's caption and reference latents."""
+    asset = procedural.make_asset(index, size, seed)
+    rows = []
+    for type_ in PROMPT_TYPES:
+        material = enhance(asset.pbr, type_, corpus.enhancement_seed(seed, index), ParamMap(asset.world_normals),
+                           ParamMap(asset.world_positions))
+        rows.append({"type": type_, "prompt": corpus.caption_for(asset.shape, material, False),
+                     "reference": latents_of(material, size)})
+    return asset, rows
+
+
+def pair_flip(a: np.ndarray, b: np.ndarray) -> float:
+    """Mean FLIP between two stacks of display-referred views."""
+    return float(np.mean([mean_flip(x, y) for x, y in zip(a, b)]))
+
+
+def measure(args: argparse.Namespace) -> tuple[dict, list]:
+    model, cfg = gen.load_generator(args.checkpoint)
+    size, corpus_seed = cfg.corpus.texture_size, cfg.corpus.seed
+    objects, cells = [], []
+    for index in dielectric_indices(args.objects, corpus_seed):
+        asset, prompts = object_prompts(index, size, corpus_seed)
+        inp = MeshInput.from_pbr(asset.mesh, asset.pbr)
+        renders, row_cells = [], []
+        for p in prompts:
+            result = gen.generate(inp, p["prompt"], model, cfg, args.seed, DEFAULT_STEPS, DEFAULT_VIEWS, 2.0, size,
+                                  samples=DEFAULT_SAMPLES)
+            ref = render(inp, p["reference"], args.eval_views, args.resolution, args.spp)
+            out = render(inp, result.latents, args.eval_views, args.resolution, args.spp, result.energy_scale)
+            renders.append((ref, out))
+            p.update(generated_type=result.type, psnr=psnr(ref, out, ref.sum(-1) > 0))
+            row_cells.append((p, [render(inp, lat, 1, args.gallery_size, 32, scale)[0]
+                                  for lat, scale in ((p["reference"], None), (result.latents, result.energy_scale))]))
+        pairs = {}
+        for (i, a), (j, b) in itertools.combinations(enumerate(PROMPT_TYPES), 2):
+            pairs[f"{a}-{b}"] = {"references": pair_flip(renders[i][0], renders[j][0]),
+                                 "generated": pair_flip(renders[i][1], renders[j][1])}
+        objects.append({"asset_id": asset.asset_id, "pairs": pairs,
+                        "prompts": [{k: v for k, v in p.items() if k != "reference"} for p in prompts]})
+        cells.append((asset.asset_id, row_cells))
+        print(f"{asset.asset_id}: " + ", ".join(f"{k} {v['generated'] / v['references']:.2f}" for k, v in pairs.items()),
+              flush=True)
+    per_pair = {}
+    for key in objects[0]["pairs"]:
+        ref = float(np.mean([o["pairs"][key]["references"] for o in objects]))
+        out = float(np.mean([o["pairs"][key]["generated"] for o in objects]))
+        per_pair[key] = {"references_flip": ref, "generated_flip": out, "ratio": out / ref}
+    overall = float(np.mean([p["generated_flip"] for p in per_pair.values()])
+                    / np.mean([p["references_flip"] for p in per_pair.values()]))
+    report = {"seed": args.seed, "checkpoint": str(args.checkpoint), "prompt_types": list(PROMPT_TYPES),
+              "eval_views": args.eval_views, "resolution": args.resolution, "spp": args.spp,
+              "steps": DEFAULT_STEPS, "views": DEFAULT_VIEWS, "samples": DEFAULT_SAMPLES,
+              "ratio": overall, "target": TARGET, "passed": overall >= TARGET, "per_pair": per_pair,
+              "median_psnr": float(np.median([p["psnr"] for o in objects for p in o["prompts"]])),
+              "objects": objects}
+    return report, cells
+
+
+def chart(report: dict, path: Path) -> None:
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(6.5, 3.2))
+    keys = list(report["per_pair"])
+    ax.bar(range(len(keys)), [report["per_pair"][k]["ratio"] for k in keys], color="tab:blue")
+    ax.axhline(report["target"], color="tab:red", ls="--", lw=1, label=f"target {report['target']}")
+    ax.set_xticks(range(len(keys)), [" vs ".join(f"T{t}" for t in k.split("-")) for k in keys])
+    ax.set_ylabel("FLIP(generated) / FLIP(references)")
+    ax.set_title(f"prompt sensitivity, {len(report['objects'])} held-out objects, seed {report['seed']}: "
+                 f"overall {report['ratio']:.2f}", fontsize=9)
+    ax.legend(fontsize=8)
+    save_chart(fig, path)
+
+
+def gallery(cells: list, path: Path, record: dict) -> None:
+    """Per object two rows (reference, generated), one column per prompt, each titled with its wording."""
+    plt = pyplot()
+    cols = len(PROMPT_TYPES)
+    fig, axes = plt.subplots(2 * len(cells), cols, figsize=(2.7 * cols, 2.9 * 2 * len(cells)), squeeze=False)
+    for k, (asset_id, row_cells) in enumerate(cells):
+        mask = row_cells[0][1][0].sum(-1) > 0
+        ys, xs = np.nonzero(mask)
+        crop = (slice(max(ys.min() - 4, 0), ys.max() + 5), slice(max(xs.min() - 4, 0), xs.max() + 5))
+        for c, (p, (ref, out)) in enumerate(row_cells):
+            wording = p["prompt"].split(" with ")[-1]
+            for r, (image, kind) in enumerate(((ref, "reference"), (out, "generated"))):
+                ax = axes[2 * k + r][c]
+                ax.imshow(image[crop])
+                if r == 0:
+                    title = (textwrap.fill(f"Type {p['type']} {TYPES[p['type']].label}", 34) + "\n"
+                             + textwrap.fill(f'"{wording}"', 38) + "\nreference")
+                else:
+                    title = f"generated, {p['psnr']:.1f} dB against the reference"
+                ax.set_title(title, fontsize=6.5)
+                ax.axis("off")
+        axes[2 * k][0].text(-0.06, 0.0, asset_id, transform=axes[2 * k][0].transAxes, rotation=90,
+                            fontsize=7, ha="right", va="center")
+    save_chart(fig, path, record)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--objects", type=int, default=4, help="held-out dielectric objects")
+    ap.add_argument("--seed", type=int, default=0, help="sampling seed")
+    ap.add_argument("--checkpoint", type=Path, default=gen.SHIPPED)
+    ap.add_argument("--eval-views", type=int, default=8, help="views rendered for the FLIPs")
+    ap.add_argument("--resolution", type=int, default=64)
+    ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--gallery-size", type=int, default=192, help="gallery render size in pixels")
+    ap.add_argument("--out", type=Path, default=REPORTS / "generate_prompts.json")
+    args = ap.parse_args()
+    torch.set_num_threads(1)
+    report, cells = measure(args)
+    write_report(args.out, report, [weights.SHIPPED], args.checkpoint)
+    chart(report, args.out.with_suffix(".png"))
+    gallery(cells, args.out.with_name(args.out.stem + "_gallery.png"), provenance([weights.SHIPPED], args.checkpoint))
+    print(json.dumps({k: report[k] for k in ("ratio", "passed", "per_pair", "median_psnr")}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
