@@ -104,8 +104,6 @@ def test_fit_reports_missing_weights_with_the_fix(blender_run, extension_zip: Pa
     assert "Traceback" not in result["err"]
 
 
-@pytest.mark.skipif(not (SHIPPED_WEIGHTS / "weights.safetensors").is_file(),
-                    reason="no shipped decoder weights in torch_models/neural/weights yet")
 def test_fit_writes_and_assigns_the_latent_textures(blender_run, extension_zip: Path, tmp_path: Path):  # noqa: F811
     result = blender_run(script(f"TMP = {str(tmp_path)!r}\nWEIGHTS = ''\n" + FIT, extension_zip))
     assert result["res"] == ["FINISHED"], result["err"]
