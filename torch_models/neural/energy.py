@@ -21,7 +21,7 @@ from richmat_addon.core.stage_clock import StageClock
 
 from .data import cosine_hemisphere, make_batch, view_directions
 from .fitting import FIT_BATCH, FIT_BUFFER, deterministic, fitting_loss, fitting_pool
-from .quadrature import VIEW_COSINES, QuadratureSums, half_vector_albedo, half_vector_nodes, summed_albedo
+from .quadrature import QUADRATURE_THETA, VIEW_COSINES, QuadratureSums, half_vector_albedo, half_vector_nodes, summed_albedo
 from .weights import NeuralModel
 
 SCALE_STEP = 1.0 / 1024  # grid of the energy scale (a power of two: exact in float32)
@@ -29,6 +29,9 @@ SCALE_STEP = 1.0 / 1024  # grid of the energy scale (a power of two: exact in fl
 # The quadrature integrates a Lambertian to within 0.06 % at every view angle: a latent with
 # T = 1 and no f_neu is a white diffuse surface, not an energy gain.
 QUADRATURE_TOLERANCE = 2e-3
+# A decoder bounded by construction puts many latents at the bound (a white dielectric's R + T = 1),
+# where 64 polar rings read grazing views up to 6 % high; 256 resolve them to 2e-4.
+BOUNDED_QUADRATURE_THETA = 256
 # What the guard writes is what renders: it holds the quadrature to 1 itself. A texel it
 # left at a quadrature albedo of 1.0016 read 1.0013 +- 0.00007 by 65 k fresh samples.
 GUARD_TOLERANCE = 0.0
@@ -237,7 +240,10 @@ def furnace(model: NeuralModel, z: Tensor, n: int = 1024, seed: int = 0,
         a2, s2 = _furnace_pass(model, z[again], confirm * n, seed + 1, scale[again], angles)
         albedos[again] = torch.where(angles, a2, albedos[again])
         std_errors[again] = torch.where(angles, s2, std_errors[again])
-    sums = half_vector_albedo(model, z) if quadrature is None else quadrature
+    if quadrature is None:
+        sums = half_vector_albedo(model, z, BOUNDED_QUADRATURE_THETA if model.decoder.bounded else QUADRATURE_THETA)
+    else:
+        sums = quadrature
     return Furnace(albedos, std_errors, sums.diffuse, sums.albedo(scale), tolerance)
 
 

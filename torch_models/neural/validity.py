@@ -21,12 +21,7 @@ from torch import Tensor
 
 from .data import parameter_vectors
 from .energy import Furnace, furnace
-from .quadrature import half_vector_albedo
 from .weights import NeuralModel
-
-# A decoder bounded by construction puts many latents at the bound (a white dielectric's R + T = 1),
-# where the furnace's 64 polar rings read grazing views up to 6 % high; 256 resolve them to 2e-4.
-BOUNDED_QUADRATURE_THETA = 256
 
 
 def training_latent_box(model: NeuralModel, n: int = 20_000, seed: int = 0) -> tuple[Tensor, Tensor]:
@@ -99,6 +94,5 @@ def check_latents(model: NeuralModel, z: Tensor, pairs: int = 256, seed: int = 0
             finite[k0:k0 + m] = torch.isfinite(out).flatten(1).all(1)
             in_range = (f >= 0).all(-1) & (t >= 0).all(-1) & (t <= 1).all(-1) & (r >= 0).all(-1) & (r <= 1).all(-1)
             non_negative[k0:k0 + m] = in_range.reshape(m, pairs).all(1)
-    sums = half_vector_albedo(model, z, BOUNDED_QUADRATURE_THETA) if model.decoder.bounded else None
-    return Validity(finite, non_negative, furnace(model, z, seed=seed, energy_scale=energy_scale, quadrature=sums))
+    return Validity(finite, non_negative, furnace(model, z, seed=seed, energy_scale=energy_scale))
 
