@@ -42,27 +42,24 @@ PROMPT_TYPES = (0, 1, 2, 4)  # haze, dust, clearcoat, inner scattering: what a d
 TARGET = 0.7
 
 
-def dielectric_indices(count: int, seed: int) -> list[int]:
-    """The first ``count`` held-out procedural objects whose material is not a metal."""
+def dielectric_prompts(count: int, size: int, seed: int) -> list[tuple[procedural.ProceduralAsset, list[dict]]]:
+    """The first ``count`` held-out procedural objects whose material is not a metal, each with, per
+    prompt type, its enhanced material's caption and reference latents."""
     picked = []
     for index in held_out_indices(10 * count, seed):
-        if not is_metallic(procedural.make_asset(index, 8, seed).pbr):
-            picked.append(index)
+        asset = procedural.make_asset(index, size, seed)
+        if is_metallic(asset.pbr):
+            continue
+        rows = []
+        for type_ in PROMPT_TYPES:
+            material = enhance(asset.pbr, type_, corpus.enhancement_seed(seed, index),
+                               ParamMap(asset.world_normals), ParamMap(asset.world_positions))
+            rows.append({"type": type_, "prompt": corpus.caption_for(asset.shape, material, False),
+                         "reference": latents_of(material, size)})
+        picked.append((asset, rows))
         if len(picked) == count:
             break
     return picked
-
-
-def object_prompts(index: int, size: int, seed: int) -> tuple[procedural.ProceduralAsset, list[dict]]:
-    """The object and, per prompt type, its enhanced material's caption and reference latents."""
-    asset = procedural.make_asset(index, size, seed)
-    rows = []
-    for type_ in PROMPT_TYPES:
-        material = enhance(asset.pbr, type_, corpus.enhancement_seed(seed, index), ParamMap(asset.world_normals),
-                           ParamMap(asset.world_positions))
-        rows.append({"type": type_, "prompt": corpus.caption_for(asset.shape, material, False),
-                     "reference": latents_of(material, size)})
-    return asset, rows
 
 
 def pair_flip(a: np.ndarray, b: np.ndarray) -> float:
@@ -74,8 +71,7 @@ def measure(args: argparse.Namespace) -> tuple[dict, list]:
     model, cfg = gen.load_generator(args.checkpoint)
     size, corpus_seed = cfg.corpus.texture_size, cfg.corpus.seed
     objects, cells = [], []
-    for index in dielectric_indices(args.objects, corpus_seed):
-        asset, prompts = object_prompts(index, size, corpus_seed)
+    for asset, prompts in dielectric_prompts(args.objects, size, corpus_seed):
         inp = MeshInput.from_pbr(asset.mesh, asset.pbr)
         renders, row_cells = [], []
         for p in prompts:

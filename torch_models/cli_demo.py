@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from richmat_addon.core.texel_vectors import TexelVectors
 
+    from .neural.weights import NeuralModel
+
 HELP = "uplift the built-in material to Types 0-5, fit them as neural materials, generate from prompts"
 DEFAULT_PROBE = Path(__file__).resolve().parent / "data" / "studio_small_03_512.hdr"
 
@@ -82,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
     apply_sizes(args)
     if args.generate_size < 8:
         raise InputError("--generate-size must be >= 8")
-    progress = Progress(expected_seconds(args, bounded=weights.load().decoder.bounded))
+    model = weights.load()
+    progress = Progress(expected_seconds(args, bounded=model.decoder.bounded))
     progress.start("enhance")
     pbr = chipped_paint(args.size)
     normals, positions = sphere_texel_geometry(args.size, args.size)
@@ -100,15 +103,15 @@ def run(args: argparse.Namespace) -> int:
     png = save_sheet([captioned_row([to_u8(b) for b in balls], labels)], args.out / "side_by_side.png")
     progress.write(f"wrote {args.out}/type_0..5 and {png}")
     if not args.no_neural:
-        fit_and_compare(args, materials, balls[1:], progress)
+        fit_and_compare(args, model, materials, balls[1:], progress)
     if not args.no_generate:
         generate_from_prompts(args.out, args.seed, args.generate_size, args.view_size, progress)
     progress.close()
     return 0
 
 
-def fit_and_compare(args: argparse.Namespace, materials: list, analytic: list,  # type: ignore[type-arg]
-                    progress: Progress) -> None:
+def fit_and_compare(args: argparse.Namespace, model: NeuralModel, materials: list,  # type: ignore[type-arg]
+                    analytic: list, progress: Progress) -> None:  # type: ignore[type-arg]
     """Fit the six types as neural materials with the shipped decoder, write their latents, compare
     each with its analytic ball (``analytic``: the renders of side_by_side.png, same settings).
 
@@ -124,10 +127,9 @@ def fit_and_compare(args: argparse.Namespace, materials: list, analytic: list,  
     from richmat_addon.core.maps import ParamMap
 
     from .demo_render import captioned_row, neural_bsdf, render_balls, save_sheet, to_u8
-    from .neural import energy, fitting, material_vectors, weights
+    from .neural import energy, fitting, material_vectors
     from .neural.evaluate import compare
 
-    model = weights.load()
     folders = [args.out / f"type_{m.type}" for m in materials]
     vectors = [material_vectors.read_vectors(f) for f in folders]
     if args.merge:
