@@ -86,7 +86,7 @@ class Retrieval:
     """Nearest training object by caption embedding; its mean covered latent as a constant material."""
 
     def __init__(self, data: CorpusConfig) -> None:
-        samples = [s for s in load_corpus(data, progress=False) if not corpus.is_held_out(s.asset_id)]
+        samples = [s for s in load_corpus(data, progress=False) if data.trains_on(s.asset_id)]
         if not samples:
             raise SystemExit(f"{data.dir}: no training samples for the retrieval baseline")
         self.embeddings = torch.stack([s.text for s in samples])

@@ -8,7 +8,7 @@ from safetensors.torch import load_file
 
 from torch_models.cli import main
 from torch_models.generator import corpus, procedural
-from torch_models.generator.train import GeneratorTrainConfig, learning_rate, load_corpus
+from torch_models.generator.train import GeneratorTrainConfig, GeneratorTrainer, learning_rate, load_corpus
 from tests.test_generator_text import text_encoder
 
 torch.set_num_threads(1)
@@ -103,3 +103,9 @@ def test_batch_dirs_add_every_asset_of_a_batch_output_index(tmp_path):
     with text_encoder():
         samples = load_corpus(cfg.corpus, progress=False)
     assert [s.asset_id for s in samples] == ["cone_metal_2-a98e222826"]
+    # an asset named in ``held_out`` is kept out of training, as the hashed split is
+    assert cfg.corpus.trains_on("cone_metal_2-a98e222826")
+    cfg.corpus.held_out = ["cone_metal_2-a98e222826"]
+    assert not cfg.corpus.trains_on("cone_metal_2-a98e222826") and cfg.corpus.trains_on("cone_metal_3-a98e222826")
+    with pytest.raises(ValueError, match="no training objects"):
+        GeneratorTrainer(cfg, tmp_path / "run", samples)

@@ -34,6 +34,11 @@ class CorpusConfig:
     fit_steps: int = 0
     supersample: int = 1  # anti-aliasing of the rasterised views (2: 4 samples per pixel)
     seed: int = 0
+    held_out: list[str] = field(default_factory=list)  # asset ids never trained on besides the hashed split:
+    # real assets kept for evaluation (bench/generate_eval_real.py)
+
+    def trains_on(self, asset_id: str) -> bool:
+        return not (corpus.is_held_out(asset_id) or asset_id in self.held_out)
 
 
 @dataclass
@@ -103,7 +108,7 @@ class GeneratorTrainer:
             torch.set_num_threads(cfg.threads)
         self.where = where = placement(cfg.device)
         self.rank, self.world, self.device = where.rank, where.world, where.device
-        train = [s for s in samples if not corpus.is_held_out(s.asset_id)]
+        train = [s for s in samples if cfg.corpus.trains_on(s.asset_id)]
         if not train:
             raise ValueError("the corpus has no training objects")
         self.target, self.cond, self.text, self.type, self.unknown_prior = (t.to(self.device) for t in _stack(train))
