@@ -1,12 +1,15 @@
-"""Evaluate the text-to-material generator on held-out procedural objects (issue 6, item 5).
+"""Evaluate the text-to-material generator on held-out objects (issue 6, item 5; issue 30, item 3).
 
-For each held-out object (never trained on: its id hashes into the held-out split)
-the generator gets the object's caption as the prompt; the object is rendered
-from 16 orbit views with the generated latents and with the reference latents
-(the shipped encoder's latents of its enhanced material, the training target),
-same base colour, G-buffer shading under the default probe, AgX. Reported per
-object and overall: PSNR (display-referred, over the object's pixels) and mean
-FLIP, for the generator and three baselines:
+Two sets, never trained on: procedural objects whose ids hash into the held-out split,
+and (``--real``) the real sample assets the corpus configuration holds out
+(``bench/held_out_assets.py``), read as ``generate`` reads a user's file, every part
+with its UVs and maps. Each object's caption is its prompt. The object is rendered from
+16 orbit views with the generated latents and with the reference latents, same base
+colour, G-buffer shading under the default probe, AgX. The reference of a procedural
+object is the shipped encoder's latents of its enhanced material (the training target);
+of a real asset, batch's latents of it (each material uplifted with the caption's
+parameters and fitted). Reported per object and overall: PSNR (display-referred, over
+the object's pixels) and mean FLIP, for the generator and three baselines:
 - pbr: the plain PBR material (core.enhance.baseline), no enhancement;
 - procedural: core.enhance with the type the prompt names and fixed default
   draws (generator/prior.py; the object's own seed would hand this baseline the
@@ -14,16 +17,17 @@ FLIP, for the generator and three baselines:
   the generated-minus-procedural gap is what the prompt's wording adds;
 - retrieval: the mean latent of the training object whose caption embedding is
   closest to the prompt's, as one constant material.
-Validity: the share of generated texels that fail the white furnace (gain
-energy) as ``generate`` writes them, i.e. with its energy guard's scale map, by a
-fresh furnace estimate; the share before the guard is reported beside it. The
-generated material is rendered with the scale map, as the add-on's preview does. CLIP-FID, CMMD and LPIPS need weights that
-cannot be downloaded here; they are skipped (noted in the output).
+Also the share of texels a view saw squarely (``projection.seen``). Validity: the share
+of generated texels that fail the white furnace (gain energy) as ``generate`` writes them,
+i.e. with its energy guard's scale map, by a fresh furnace estimate; the share before the
+guard is reported beside it. The generated material is rendered with the scale map, as
+the add-on's preview does. CLIP-FID, CMMD and LPIPS need weights that cannot be
+downloaded here; they are skipped (noted in the output).
 
-Writes docs/reports/generate_eval[_seedS].json and .png (PSNR and FLIP per method); the
-gallery of generated materials is bench/generate_gallery.py.
+Writes docs/reports/generate_eval[_real][_seedS].json and .png (PSNR and FLIP per
+method); the gallery of generated materials is bench/generate_gallery.py.
 
-    python -m bench.generate_eval [--seed S] [--checkpoint DIR] [--objects N]
+    python -m bench.generate_eval [--real] [--seed S] [--checkpoint DIR] [--objects N]
 """
 from __future__ import annotations
 
@@ -38,6 +42,7 @@ import numpy as np
 import torch
 
 from bench.common import REPORTS, pyplot, save_chart, write_report
+from bench.held_out_assets import RealHeldOut, real_held_out
 from richmat_addon.core.enhance import baseline, enhance, is_metallic
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
 from torch_models.generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural, text
@@ -46,6 +51,7 @@ from torch_models.generator.dit import LatentGenerator
 from torch_models.generator.encoding import latent_texture
 from torch_models.generator.mesh_input import MeshInput
 from torch_models.generator.train import CorpusConfig, GeneratorTrainConfig, load_corpus
+from torch_models.generator.views import Textures, per_material
 from torch_models.neural import energy, weights
 from torch_models.render.flip import mean_flip
 from torch_models.render.tonemap import agx
@@ -63,6 +69,17 @@ class HeldOut:
     prompt: str
     type: int
     inp: MeshInput
+
+    @property
+    def asset_id(self) -> str:
+        return self.asset.asset_id
+
+    def reference(self, size: int) -> np.ndarray:
+        """The training target: the encoder's latents of the enhanced material."""
+        return latents_of(self.material, size)
+
+    def plain_pbr(self, size: int) -> np.ndarray:
+        return latents_of(baseline(self.asset.pbr), size)
 
 
 def held_out_indices(count: int, seed: int, limit: int = 100_000) -> list[int]:
@@ -109,8 +126,8 @@ def latents_of(material: EnhancedMaterial, size: int) -> np.ndarray:
     return latent_texture(material, (size, size))
 
 
-def render(inp: MeshInput, latents: np.ndarray, views: int, resolution: int, spp: int,
-           energy_scale: np.ndarray | None = None) -> np.ndarray:
+def render(inp: MeshInput, latents: Textures, views: int, resolution: int, spp: int,
+           energy_scale: Textures | None = None) -> np.ndarray:
     """Display-referred renders (views, H, W, 3) of the mesh with a latent texture (and the
     energy guard's scale map, for a generated one).
 
@@ -119,11 +136,12 @@ def render(inp: MeshInput, latents: np.ndarray, views: int, resolution: int, spp
     return agx(frames.reshape(-1, *frames.shape[2:])).reshape(frames.shape)
 
 
-def invalid_share(latents: np.ndarray, energy_scale: np.ndarray, sample: int = 512) -> tuple[float, float]:
+def invalid_share(latents: Textures, energy_scale: Textures, sample: int = 512) -> tuple[float, float]:
     """Shares of (a sample of) distinct texels that gain energy in the white furnace: as
     sampled, and as written (f_neu scaled by the guard), the latter by a fresh estimate."""
-    packed = np.unique(np.concatenate([latents.reshape(-1, 6), energy_scale.reshape(-1, 1)], 1), axis=0)
-    packed = torch.from_numpy(packed.astype(np.float32))
+    packed = np.concatenate([np.concatenate([t.reshape(-1, 6), s.reshape(-1, 1)], 1)
+                             for t, s in zip(per_material(latents), per_material(energy_scale))])
+    packed = torch.from_numpy(np.unique(packed, axis=0).astype(np.float32))
     if len(packed) > sample:
         packed = packed[torch.randperm(len(packed), generator=torch.Generator().manual_seed(0))[:sample]]
     model = weights.load()
@@ -132,31 +150,33 @@ def invalid_share(latents: np.ndarray, energy_scale: np.ndarray, sample: int = 5
     return float(raw.float().mean()), float(written.float().mean())
 
 
-def evaluate(obj: HeldOut, model: LatentGenerator, cfg: GeneratorTrainConfig, args: argparse.Namespace,
-             retrieval: Retrieval) -> dict:
+def evaluate(obj: HeldOut | RealHeldOut, model: LatentGenerator, cfg: GeneratorTrainConfig,
+             args: argparse.Namespace, retrieval: Retrieval) -> dict:
     """PSNR/FLIP of the generation and the baselines against the reference, for one object."""
     size = cfg.corpus.texture_size
     t0, c0 = time.perf_counter(), time.process_time()
     result = gen.generate(obj.inp, obj.prompt, model, cfg, args.seed, args.steps, args.views, args.guidance, size,
                           samples=args.samples)
     seconds, cpu_seconds = time.perf_counter() - t0, time.process_time() - c0
-    a = obj.asset
-    raw_invalid, invalid = invalid_share(result.latents, result.energy_scale)
+    generated = [m.latents for m in result.materials]
+    scales = [m.energy_scale for m in result.materials]
+    raw_invalid, invalid = invalid_share(generated, scales)
+    retrieved = retrieval.latent(obj.prompt)
     candidates = {
-        "generated": result.latents,
-        "pbr": latents_of(baseline(a.pbr), size),
-        "procedural": result.prior,
-        "retrieval": np.broadcast_to(retrieval.latent(obj.prompt), (size, size, 6)).copy(),
+        "generated": generated,
+        "pbr": obj.plain_pbr(size),
+        "procedural": [m.prior for m in result.materials],
+        "retrieval": [np.broadcast_to(retrieved, t.shape).copy() for t in generated],
     }
-    reference = render(obj.inp, latents_of(obj.material, size), args.eval_views, args.resolution, args.spp)
+    reference = render(obj.inp, obj.reference(size), args.eval_views, args.resolution, args.spp)
     mask = reference.sum(-1) > 0
-    row = {"asset_id": a.asset_id, "prompt": obj.prompt, "type": obj.type, "seconds": seconds,
-           "cpu_seconds": cpu_seconds, "seconds_by_stage": result.seconds, "projection": result.projection.stats(result.charts),
+    row = {"asset_id": obj.asset_id, "prompt": obj.prompt, "type": obj.type, "seconds": seconds,
+           "cpu_seconds": cpu_seconds, "seconds_by_stage": result.seconds, "projection": result.coverage(),
            "warnings": result.warnings, "invalid_generated_texels": invalid,
-           "energy_gaining_before_guard": raw_invalid, "texels_darkened_by_guard": float((result.energy_scale < 1).mean())}
+           "energy_gaining_before_guard": raw_invalid,
+           "texels_darkened_by_guard": float(np.mean(np.concatenate([s.ravel() for s in scales]) < 1))}
     for name, lat in candidates.items():
-        scale = result.energy_scale if name == "generated" else None
-        img = render(obj.inp, lat, args.eval_views, args.resolution, args.spp, scale)
+        img = render(obj.inp, lat, args.eval_views, args.resolution, args.spp, scales if name == "generated" else None)
         row[name] = {"psnr": psnr(reference, img, mask),
                      "flip": float(np.mean([mean_flip(r, t) for r, t in zip(reference, img)]))}
     return row
@@ -173,7 +193,7 @@ def chart(report: dict, path: Path) -> None:
             ax.axhline(30.0, color="tab:red", ls="--", lw=1, label="target 30 dB")
             ax.legend(loc="lower right", fontsize=8)
         ax.set_title(label, fontsize=9)
-    fig.suptitle(f"generator on {len(report['objects'])} held-out objects, seed {report['seed']} "
+    fig.suptitle(f"generator on {len(report['objects'])} held-out {report['kind']} objects, seed {report['seed']} "
                  f"({report['steps']} steps, {report['views']} views, {report.get('samples', 1)} samples)", fontsize=10)
     save_chart(fig, path)
 
@@ -182,41 +202,49 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0, help="sampling seed")
     ap.add_argument("--checkpoint", type=Path, default=gen.SHIPPED)
-    ap.add_argument("--objects", type=int, default=16)
+    ap.add_argument("--objects", type=int, default=16, help="held-out procedural objects")
+    ap.add_argument("--real", action="store_true",
+                    help="evaluate on the real sample assets the corpus holds out (corpus.held_out) instead")
     ap.add_argument("--views", type=int, default=DEFAULT_VIEWS, help="views generated")
     ap.add_argument("--eval-views", type=int, default=16, help="views rendered for the metrics")
     ap.add_argument("--steps", type=int, default=DEFAULT_STEPS)
     ap.add_argument("--samples", type=int, default=DEFAULT_SAMPLES, help="samples averaged per object")
     ap.add_argument("--guidance", type=float, default=2.0)
-    ap.add_argument("--resolution", type=int, default=64, help="evaluation render size")
+    ap.add_argument("--resolution", type=int, default=None, help="evaluation render size (default: 64, 96 with --real)")
     ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--out", type=Path, default=None, help="report JSON (default: docs/reports/generate_eval[_seedS].json)")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="report JSON (default: docs/reports/generate_eval[_real][_seedS].json)")
     args = ap.parse_args()
     torch.set_num_threads(1)
-    name = "generate_eval.json" if args.seed == 0 else f"generate_eval_seed{args.seed}.json"
-    out = args.out or REPORTS / name
+    kind = "real" if args.real else "procedural"
+    args.resolution = args.resolution or (96 if args.real else 64)
+    out = args.out or REPORTS / ("generate_eval" + ("_real" if args.real else "")
+                                 + (f"_seed{args.seed}" if args.seed else "") + ".json")
     model, cfg = gen.load_generator(args.checkpoint)
-    objects = [held_out(i, cfg) for i in held_out_indices(args.objects, cfg.corpus.seed)]
+    objects = (real_held_out(cfg) if args.real
+               else [held_out(i, cfg) for i in held_out_indices(args.objects, cfg.corpus.seed)])
     retrieval = Retrieval(cfg.corpus)
     rows = []
     for obj in objects:
         rows.append(evaluate(obj, model, cfg, args, retrieval))
-        print(f"{obj.asset.asset_id} {obj.prompt!r}: " + ", ".join(
+        print(f"{obj.asset_id} {obj.prompt!r}: " + ", ".join(
             f"{k} {rows[-1][k]['psnr']:.2f} dB / FLIP {rows[-1][k]['flip']:.3f}" for k in METHODS), flush=True)
     overall = {k: {m: float(np.mean([r[k][m] for r in rows])) for m in ("psnr", "flip")} for k in METHODS}
     invalid = float(np.mean([r["invalid_generated_texels"] for r in rows]))
     best_baseline = max(overall[k]["psnr"] for k in METHODS[1:])
-    report = {"seed": args.seed, "checkpoint": str(args.checkpoint), "views": args.views,
+    report = {"kind": kind, "seed": args.seed, "checkpoint": str(args.checkpoint), "views": args.views,
               "eval_views": args.eval_views, "steps": args.steps, "samples": args.samples,
               "guidance": args.guidance,
               "resolution": args.resolution, "spp": args.spp, "overall": overall,
               "invalid_generated_texels": invalid,
               "energy_gaining_before_guard": float(np.mean([r["energy_gaining_before_guard"] for r in rows])),
               "targets": {"psnr_at_least_30": overall["generated"]["psnr"] >= 30.0,
+                          "every_object_at_least_30": min(r["generated"]["psnr"] for r in rows) >= 30.0,
                           "psnr_above_every_baseline": overall["generated"]["psnr"] > best_baseline,
                           "no_invalid_texels": invalid == 0.0},
               "median_seconds_per_object": float(np.median([r["seconds"] for r in rows])),
               "median_cpu_seconds_per_object": float(np.median([r["cpu_seconds"] for r in rows])),
+              "min_seen_share": min(r["projection"]["seen"] for r in rows),
               "note": SKIPPED_METRICS, "objects": rows}
     write_report(out, report, [weights.SHIPPED], args.checkpoint)
     chart(report, out.with_suffix(".png"))

@@ -1,20 +1,21 @@
 """Does the generator follow the prompt visibly? Prompt sensitivity and a gallery (issue 30, item 4).
 
-On held-out procedural dielectrics (as bench/generate_eval.py picks them; metals are
-left out, since fuzz and scattering fall back to dust on a metal), the object's PBR
-material is enhanced with each of Types 0, 1, 2 and 4 (the object's own draws),
-captioned as the corpus captions it, and generated from that caption. For each pair of
-prompts, the mean FLIP between the two generated materials' renders over the mean FLIP
-between their references' (the encoder's latents of the two enhanced materials): 1 when
-the generations differ as much as the references do, 0 when the wording changes nothing.
-The issue's target is 0.7. Each generation's PSNR against its own reference is reported
-beside it.
+On held-out procedural dielectrics (as bench/generate_eval.py picks them), or with
+``--real`` on the real sample assets the corpus holds out (bench/held_out_assets.py,
+each read as ``generate`` reads it), metals left out since fuzz and scattering fall back
+to dust on a metal: every material is enhanced with each of Types 0, 1, 2 and 4 (its
+own draws), captioned as the corpus captions it, and the object generated from that
+caption. For each pair of prompts, the mean FLIP between the two generated materials'
+renders over the mean FLIP between their references' (the encoder's latents of the two
+enhanced materials): 1 when the generations differ as much as the references do, 0 when
+the wording changes nothing. The issue's target is 0.7. Each generation's PSNR against
+its own reference is reported beside it.
 
-Writes docs/reports/generate_prompts.json with its chart (.png: the ratio per pair of
-prompts) and docs/reports/generate_prompts_gallery.png (per object a reference row and a
-generated row, one labelled column per prompt).
+Writes docs/reports/generate_prompts[_real].json with its chart (.png: the ratio per pair
+of prompts) and docs/reports/generate_prompts[_real]_gallery.png (per object a reference
+row and a generated row, one labelled column per prompt).
 
-    python -m bench.generate_prompts [--objects N] [--seed S] [--checkpoint DIR]
+    python -m bench.generate_prompts [--real] [--objects N] [--seed S] [--checkpoint DIR]
 """
 from __future__ import annotations
 
@@ -29,12 +30,14 @@ import torch
 
 from bench.common import REPORTS, provenance, pyplot, save_chart, write_report
 from bench.generate_eval import held_out_indices, latents_of, psnr, render
+from bench.held_out_assets import real_held_out
 from richmat_addon.core.enhance import enhance, is_metallic
 from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.maps import ParamMap
 from torch_models.generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural
 from torch_models.generator import generate as gen
 from torch_models.generator.mesh_input import MeshInput
+from torch_models.generator.train import GeneratorTrainConfig
 from torch_models.neural import weights
 from torch_models.render.flip import mean_flip
 
@@ -42,7 +45,7 @@ PROMPT_TYPES = (0, 1, 2, 4)  # haze, dust, clearcoat, inner scattering: what a d
 TARGET = 0.7
 
 
-def dielectric_prompts(count: int, size: int, seed: int) -> list[tuple[procedural.ProceduralAsset, list[dict]]]:
+def dielectric_prompts(count: int, size: int, seed: int) -> list[tuple[str, MeshInput, list[dict]]]:
     """The first ``count`` held-out procedural objects whose material is not a metal, each with, per
     prompt type, its enhanced material's caption and reference latents."""
     picked = []
@@ -56,9 +59,24 @@ def dielectric_prompts(count: int, size: int, seed: int) -> list[tuple[procedura
                                ParamMap(asset.world_normals), ParamMap(asset.world_positions))
             rows.append({"type": type_, "prompt": corpus.caption_for(asset.shape, material, False),
                          "reference": latents_of(material, size)})
-        picked.append((asset, rows))
+        picked.append((asset.asset_id, MeshInput.from_pbr(asset.mesh, asset.pbr), rows))
         if len(picked) == count:
             break
+    return picked
+
+
+def real_prompts(cfg: GeneratorTrainConfig) -> list[tuple[str, MeshInput, list[dict]]]:
+    """The held-out sample assets that are not all metal, each with, per prompt type, every material
+    uplifted with its own draws, batch's caption for that uplift and its latents."""
+    picked = []
+    for obj in real_held_out(cfg):
+        if obj.inp.metallic:
+            continue
+        rows = []
+        for type_ in PROMPT_TYPES:
+            latents, prompt = obj.uplifted(type_, cfg.corpus.texture_size)
+            rows.append({"type": type_, "prompt": prompt, "reference": latents})
+        picked.append((obj.asset_id, obj.inp, rows))
     return picked
 
 
@@ -69,28 +87,29 @@ def pair_flip(a: np.ndarray, b: np.ndarray) -> float:
 
 def measure(args: argparse.Namespace) -> tuple[dict, list]:
     model, cfg = gen.load_generator(args.checkpoint)
-    size, corpus_seed = cfg.corpus.texture_size, cfg.corpus.seed
+    size = cfg.corpus.texture_size
     objects, cells = [], []
-    for asset, prompts in dielectric_prompts(args.objects, size, corpus_seed):
-        inp = MeshInput.from_pbr(asset.mesh, asset.pbr)
+    picked = real_prompts(cfg) if args.real else dielectric_prompts(args.objects, size, cfg.corpus.seed)
+    for asset_id, inp, prompts in picked:
         renders, row_cells = [], []
         for p in prompts:
             result = gen.generate(inp, p["prompt"], model, cfg, args.seed, DEFAULT_STEPS, DEFAULT_VIEWS, 2.0, size,
                                   samples=DEFAULT_SAMPLES)
             ref = render(inp, p["reference"], args.eval_views, args.resolution, args.spp)
-            out = render(inp, result.latents, args.eval_views, args.resolution, args.spp, result.energy_scale)
+            latents, scales = [m.latents for m in result.materials], [m.energy_scale for m in result.materials]
+            out = render(inp, latents, args.eval_views, args.resolution, args.spp, scales)
             renders.append((ref, out))
             p.update(generated_type=result.type, psnr=psnr(ref, out, ref.sum(-1) > 0))
             row_cells.append((p, [render(inp, lat, 1, args.gallery_size, 32, scale)[0]
-                                  for lat, scale in ((p["reference"], None), (result.latents, result.energy_scale))]))
+                                  for lat, scale in ((p["reference"], None), (latents, scales))]))
         pairs = {}
         for (i, a), (j, b) in itertools.combinations(enumerate(PROMPT_TYPES), 2):
             pairs[f"{a}-{b}"] = {"references": pair_flip(renders[i][0], renders[j][0]),
                                  "generated": pair_flip(renders[i][1], renders[j][1])}
-        objects.append({"asset_id": asset.asset_id, "pairs": pairs,
+        objects.append({"asset_id": asset_id, "pairs": pairs,
                         "prompts": [{k: v for k, v in p.items() if k != "reference"} for p in prompts]})
-        cells.append((asset.asset_id, row_cells))
-        print(f"{asset.asset_id}: " + ", ".join(f"{k} {v['generated'] / v['references']:.2f}" for k, v in pairs.items()),
+        cells.append((asset_id, row_cells))
+        print(f"{asset_id}: " + ", ".join(f"{k} {v['generated'] / v['references']:.2f}" for k, v in pairs.items()),
               flush=True)
     per_pair = {}
     for key in objects[0]["pairs"]:
@@ -99,7 +118,7 @@ def measure(args: argparse.Namespace) -> tuple[dict, list]:
         per_pair[key] = {"references_flip": ref, "generated_flip": out, "ratio": out / ref}
     overall = float(np.mean([p["generated_flip"] for p in per_pair.values()])
                     / np.mean([p["references_flip"] for p in per_pair.values()]))
-    report = {"seed": args.seed, "checkpoint": str(args.checkpoint), "prompt_types": list(PROMPT_TYPES),
+    report = {"kind": "real" if args.real else "procedural", "seed": args.seed, "checkpoint": str(args.checkpoint), "prompt_types": list(PROMPT_TYPES),
               "eval_views": args.eval_views, "resolution": args.resolution, "spp": args.spp,
               "steps": DEFAULT_STEPS, "views": DEFAULT_VIEWS, "samples": DEFAULT_SAMPLES,
               "ratio": overall, "target": TARGET, "passed": overall >= TARGET, "per_pair": per_pair,
@@ -116,7 +135,7 @@ def chart(report: dict, path: Path) -> None:
     ax.axhline(report["target"], color="tab:red", ls="--", lw=1, label=f"target {report['target']}")
     ax.set_xticks(range(len(keys)), [" vs ".join(f"T{t}" for t in k.split("-")) for k in keys])
     ax.set_ylabel("FLIP(generated) / FLIP(references)")
-    ax.set_title(f"prompt sensitivity, {len(report['objects'])} held-out objects, seed {report['seed']}: "
+    ax.set_title(f"prompt sensitivity, {len(report['objects'])} held-out {report['kind']} objects, seed {report['seed']}: "
                  f"overall {report['ratio']:.2f}", fontsize=9)
     ax.legend(fontsize=8)
     save_chart(fig, path)
@@ -132,7 +151,7 @@ def gallery(cells: list, path: Path, record: dict) -> None:
         ys, xs = np.nonzero(mask)
         crop = (slice(max(ys.min() - 4, 0), ys.max() + 5), slice(max(xs.min() - 4, 0), xs.max() + 5))
         for c, (p, (ref, out)) in enumerate(row_cells):
-            wording = p["prompt"].split(" with ")[-1]
+            wording = p["prompt"].split(" with ", 1)[-1].split(";")[0]  # the first material's
             for r, (image, kind) in enumerate(((ref, "reference"), (out, "generated"))):
                 ax = axes[2 * k + r][c]
                 ax.imshow(image[crop])
@@ -156,9 +175,15 @@ def main() -> int:
     ap.add_argument("--eval-views", type=int, default=8, help="views rendered for the FLIPs")
     ap.add_argument("--resolution", type=int, default=64)
     ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--gallery-size", type=int, default=192, help="gallery render size in pixels")
-    ap.add_argument("--out", type=Path, default=REPORTS / "generate_prompts.json")
+    ap.add_argument("--real", action="store_true",
+                    help="the real sample assets the corpus holds out (corpus.held_out) instead, but the metal ones")
+    ap.add_argument("--gallery-size", type=int, default=None,
+                    help="gallery render size in pixels (default: 192, 256 with --real)")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="report JSON (default: docs/reports/generate_prompts[_real].json)")
     args = ap.parse_args()
+    args.gallery_size = args.gallery_size or (256 if args.real else 192)
+    args.out = args.out or REPORTS / ("generate_prompts_real.json" if args.real else "generate_prompts.json")
     torch.set_num_threads(1)
     report, cells = measure(args)
     write_report(args.out, report, [weights.SHIPPED], args.checkpoint)

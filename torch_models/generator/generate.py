@@ -17,7 +17,7 @@ from torch import Tensor
 from richmat_addon.core.enhancement_types import METAL_REMAP
 from richmat_addon.core.maps import PbrInputs, ParamMap
 from richmat_addon.core.prompt import prompt_type
-from richmat_addon.core.uv_raster import rasterize as uv_rasterize
+from richmat_addon.core.uv_raster import UvRaster, rasterize as uv_rasterize
 from . import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, text
 from .coverage import TextureSpace, choose_cameras
 from .dit import Conditions, LatentGenerator
@@ -149,17 +149,25 @@ class _Space:
     prior: np.ndarray  # (H, W, 6)
 
 
+def texture_rasters(inp: MeshInput, largest: int) -> list[UvRaster]:
+    """Every material's mesh rasterised into its UV space at its latent texture's size (charts, and
+    the world normals and positions the enhancement rules' masks read)."""
+    rasters = []
+    mesh = inp.mesh
+    for index, material in enumerate(inp.materials):
+        raster, reason = uv_rasterize(mesh.positions, mesh.normals, mesh.uvs, mesh.faces[mesh.materials == index],
+                                      material.texture_shape(largest))
+        if raster is None:
+            raise ValueError(f"cannot project into the texture space of material {material.name!r}: {reason}")
+        rasters.append(raster)
+    return rasters
+
+
 def _texture_spaces(inp: MeshInput, type_: int, largest: int) -> list[_Space]:
     """Every material's charts, maps and uplift prior at its latent texture's size."""
     spaces = []
-    mesh = inp.mesh
-    for index, material in enumerate(inp.materials):
-        shape = material.texture_shape(largest)
-        raster, reason = uv_rasterize(mesh.positions, mesh.normals, mesh.uvs, mesh.faces[mesh.materials == index],
-                                      shape)
-        if raster is None:
-            raise ValueError(f"cannot project into the texture space of material {material.name!r}: {reason}")
-        base, rm = material.maps_at(shape)
+    for material, raster in zip(inp.materials, texture_rasters(inp, largest)):
+        base, rm = material.maps_at(raster.coverage.shape)
         rm = rm if inp.pbr_known else None  # the generator's PBR flag is one per view pixel: all or none
         spaces.append(_Space(torch.from_numpy(raster.coverage), base, rm,
                              prior_latents(base, rm, type_, raster.normals, raster.positions)))

@@ -26,12 +26,10 @@ PRIOR_NAME = "richmat-prior"  # the draws depend on the material's name: one fix
 UNKNOWN_ROUGHNESS = 0.5
 
 
-def prior_material(base_color: np.ndarray, roughness_metalness: np.ndarray | None, type_: int,
-                   normals: np.ndarray, positions: np.ndarray) -> EnhancedMaterial:
-    """The enhanced material the prior encodes. Maps are (H, W, C) texture-space images (constants
-    (1, 1, C)); ``roughness_metalness`` None means unknown."""
-    size = normals.shape[:2]
-
+def pbr_inputs(base_color: np.ndarray, roughness_metalness: np.ndarray | None, size: tuple[int, int],
+               name: str = PRIOR_NAME) -> PbrInputs:
+    """A material's maps ((H, W, C) texture-space images, constants (1, 1, C)) as the enhancer's inputs
+    at ``size``; ``roughness_metalness`` None means unknown (a dielectric of ``UNKNOWN_ROUGHNESS``)."""
     def as_map(image: np.ndarray) -> ParamMap:
         if image.shape[:2] == (1, 1):
             return ParamMap.constant(*image.reshape(-1))
@@ -41,10 +39,17 @@ def prior_material(base_color: np.ndarray, roughness_metalness: np.ndarray | Non
         rough, metal = ParamMap.constant(UNKNOWN_ROUGHNESS), ParamMap.constant(0.0)
     else:
         rough, metal = as_map(roughness_metalness[..., :1]), as_map(roughness_metalness[..., 1:2])
-    pbr = PbrInputs(PRIOR_NAME, as_map(base_color), rough, metal)
-    resolved, _ = resolve_type(pbr, type_, PRIOR_SEED)  # a dielectric-only type on a metal: its metal twin
-    return enhance(pbr, resolved, PRIOR_SEED, ParamMap(normals.astype(np.float32)),
-                   ParamMap(positions.astype(np.float32)))
+    return PbrInputs(name, as_map(base_color), rough, metal)
+
+
+def prior_material(base_color: np.ndarray, roughness_metalness: np.ndarray | None, type_: int,
+                   normals: np.ndarray, positions: np.ndarray, seed: int = PRIOR_SEED,
+                   name: str = PRIOR_NAME) -> EnhancedMaterial:
+    """The enhanced material the prior encodes, at the normals' texture size; ``seed`` and ``name``
+    pick other draws (a reference uplift with a material's own draws, bench/generate_prompts.py)."""
+    pbr = pbr_inputs(base_color, roughness_metalness, normals.shape[:2], name)
+    resolved, _ = resolve_type(pbr, type_, seed)  # a dielectric-only type on a metal: its metal twin
+    return enhance(pbr, resolved, seed, ParamMap(normals.astype(np.float32)), ParamMap(positions.astype(np.float32)))
 
 
 def prior_latents(base_color: np.ndarray, roughness_metalness: np.ndarray | None, type_: int,

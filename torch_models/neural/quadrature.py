@@ -72,7 +72,7 @@ class QuadratureSums:
 
 
 def half_vector_albedo(model: NeuralModel, z: Tensor, n_theta: int = QUADRATURE_THETA,
-                       chunk: int = 1 << 18) -> QuadratureSums:
+                       n_phi: int = QUADRATURE_PHI, chunk: int = 1 << 18) -> QuadratureSums:
     """By quadrature at ``VIEW_COSINES``: f_neu's albedo per channel and the diffuse base's.
 
     T comes out of the same network as f, so it varies a little with wo, as the
@@ -80,7 +80,7 @@ def half_vector_albedo(model: NeuralModel, z: Tensor, n_theta: int = QUADRATURE_
     reflected, diffuse = torch.zeros(len(z), len(VIEW_COSINES), 3), torch.zeros(len(z), len(VIEW_COSINES))
     with torch.no_grad():
         for a, mu in enumerate(VIEW_COSINES):
-            wi, wo, weight = half_vector_nodes(mu, n_theta)
+            wi, wo, weight = half_vector_nodes(mu, n_theta, n_phi)
             per_chunk = max(1, chunk // len(wo))
             for k0 in range(0, len(z), per_chunk):
                 k = slice(k0, k0 + per_chunk)
