@@ -29,8 +29,9 @@ FRAMING_MARGIN = 1.08
 
 
 def configure_cycles(scene: bpy.types.Scene, resolution: int, samples: int, threshold: float,
-                     threads: int, graph: str = "osl") -> None:
-    """The beauty pass; ``graph`` "osl" shades with OSL (the Script node runs only there), "native" with SVM."""
+                     threads: int, graph: str = "osl", prefilter: str = "fast") -> None:
+    """The beauty pass; ``graph`` "osl" shades with OSL (the Script node runs only there), "native" with SVM;
+    ``prefilter`` is OIDN's for its albedo and normal passes (``options.DENOISE_PREFILTERS``)."""
     scene.render.engine = "CYCLES"
     cy = scene.cycles
     cy.device = "CPU"
@@ -45,6 +46,7 @@ def configure_cycles(scene: bpy.types.Scene, resolution: int, samples: int, thre
     cy.use_animated_seed = False
     cy.use_denoising = True
     cy.denoiser = "OPENIMAGEDENOISE"
+    cy.denoising_prefilter = prefilter.upper()
     r = scene.render
     r.resolution_x = r.resolution_y = resolution
     r.resolution_percentage = 100

@@ -27,7 +27,7 @@ if str(REPO) not in sys.path:
 import bpy  # noqa: E402
 
 from batch.bl_scene import BadAsset  # noqa: E402
-from batch.options import DEFAULT_MAX_TRIANGLES  # noqa: E402
+from batch.options import DEFAULT_DENOISE_PREFILTER, DEFAULT_MAX_TRIANGLES, DENOISE_PREFILTERS  # noqa: E402
 from richmat_addon.core.stage_clock import StageClock  # noqa: E402
 
 BAD_INPUT_EXIT = 3  # batch.pipeline.BAD_INPUT_EXIT (not imported: the orchestrator side stays bpy-free)
@@ -102,7 +102,7 @@ def render(args: argparse.Namespace) -> None:
 
     with clock.stage("beauty"):
         bl_render.configure_cycles(scene, args.resolution, args.samples, args.adaptive_threshold, args.threads,
-                                   args.graph)
+                                   args.graph, args.denoise_prefilter)
         scene.world = bl_render.probe_world(args.probe)
         cam = bl_render.orbit(scene, args.frames, bl_render.start_azimuth(args.asset_id, args.seed))
         for slot, name in zip(slots, originals):
@@ -145,6 +145,7 @@ def parse(argv: list[str]) -> argparse.Namespace:
     r.add_argument("--resolution", type=int, required=True)
     r.add_argument("--samples", type=int, required=True)
     r.add_argument("--adaptive-threshold", type=float, required=True)
+    r.add_argument("--denoise-prefilter", choices=DENOISE_PREFILTERS, default=DEFAULT_DENOISE_PREFILTER)
     r.add_argument("--probe", type=Path, required=True)
     r.add_argument("--aov-samples", type=int, required=True)
     r.add_argument("--graph", choices=("osl", "native"), default="osl")

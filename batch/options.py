@@ -20,6 +20,11 @@ DEFAULT_DECODER = REPO / "torch_models" / "neural" / "weights"
 DEFAULT_MAX_TRIANGLES = 5_000_000
 # The fit's own step (core.texel_vectors.QUANT); the energy check costs per vector fitted.
 DEFAULT_CLUSTER_STEP = 1 / 256
+# How OIDN treats the albedo and normal passes it denoises the beauty with: "accurate" denoises them
+# first, which costs about half of a 512 px, 16 spp beauty frame on one thread; "fast" takes them as
+# rendered (bench/beauty_denoise.py measures both).
+DENOISE_PREFILTERS = ("fast", "accurate")
+DEFAULT_DENOISE_PREFILTER = "fast"
 # Bumped when the per-asset output format or pipeline changes meaning.
 PIPELINE_VERSION = 1
 
@@ -44,6 +49,10 @@ def build_parser() -> argparse.ArgumentParser:
                                                 "default chosen by bench/render_speed.py, docs/batch.md)")
     add("--adaptive-threshold", type=float, default=0.01, help="Cycles adaptive sampling noise threshold "
                                                               "(default chosen with --samples)")
+    add("--denoise-prefilter", choices=DENOISE_PREFILTERS, default=DEFAULT_DENOISE_PREFILTER,
+        help="OIDN's treatment of the albedo and normal it denoises with: 'accurate' denoises them first (about "
+             "half of a 512 px beauty frame on one thread), 'fast' takes them as rendered (default chosen by "
+             "bench/beauty_denoise.py, docs/batch.md)")
     add("--graph", choices=("osl", "native"), default="osl",
         help="the enhanced material the beauty pass renders: the exact OSL shader (Cycles on the CPU or OptiX) or "
              "the native node graph (any Cycles device, docs/backends.md); intrinsics and latents are the same")
@@ -53,8 +62,8 @@ def build_parser() -> argparse.ArgumentParser:
                                                              "(weights.safetensors + state.json)")
     add("--fit-steps", type=int, default=300, help="latent optimisation steps per material")
     add("--cluster-step", type=float, default=DEFAULT_CLUSTER_STEP,
-        help="texel vectors that agree to this step per normalised parameter are fitted as one: the energy "
-             "check costs per fitted vector (default chosen by bench/farm_cost.py, docs/batch.md)")
+        help="texel vectors that agree to this step per normalised parameter are fitted as one, sharing the "
+             "fit's samples (bench/farm_cost.py sweeps it, docs/batch.md)")
     add("--max-texture", type=int, default=512, help="larger textures are downscaled to this size (noted)")
     add("--max-triangles", type=int, default=DEFAULT_MAX_TRIANGLES,
         help="assets whose meshes have more triangles are refused with the count (a glTF before it is imported)")
@@ -80,6 +89,7 @@ class Settings:
     resolution: int
     samples: int
     adaptive_threshold: float
+    denoise_prefilter: str
     aov_samples: int
     graph: str
     probe_sha256: str
@@ -121,7 +131,7 @@ def validate(args: argparse.Namespace) -> None:
 
 def settings_of(args: argparse.Namespace) -> Settings:
     return Settings(PIPELINE_VERSION, args.frames, args.resolution, args.samples, args.adaptive_threshold,
-                    args.aov_samples, args.graph, file_sha256(args.probe),
+                    args.denoise_prefilter, args.aov_samples, args.graph, file_sha256(args.probe),
                     file_sha256(args.decoder / "weights.safetensors"), args.fit_steps, args.cluster_step,
                     args.max_texture, args.seed)
 

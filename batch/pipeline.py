@@ -107,7 +107,8 @@ def _stage_commands(asset: Asset, job: Job, work: Path) -> list[tuple[str, list[
            "--cluster-step", repr(s.cluster_step), "--threads", str(threads)]
     render = ["render", "--work", str(work), "--asset-id", asset.id, "--frames", str(s.frames),
               "--resolution", str(s.resolution), "--samples", str(s.samples),
-              "--adaptive-threshold", str(s.adaptive_threshold), "--aov-samples", str(s.aov_samples),
+              "--adaptive-threshold", str(s.adaptive_threshold), "--denoise-prefilter", s.denoise_prefilter,
+              "--aov-samples", str(s.aov_samples),
               "--graph", s.graph, "--probe", str(job.probe), "--seed", str(s.seed), "--threads", str(threads)]
     return [("prepare", job.commands.blender_job(prepare)), ("fit", job.commands.fit_job(fit)),
             ("render", job.commands.blender_job(render))]

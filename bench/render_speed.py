@@ -110,16 +110,18 @@ def _frames(folder: Path) -> list[np.ndarray]:
     return [np.asarray(Image.open(p), np.float32)[..., :3] / 255.0 for p in sorted((folder / "rgb").glob("*.png"))]
 
 
-def render_ours(prepared: Path, out: Path, samples: int, threshold: float, args: argparse.Namespace
-                ) -> tuple[float, dict, list[np.ndarray]]:
-    """Our render stage: (wall seconds, render.json timings, beauty frames)."""
+def render_ours(prepared: Path, out: Path, samples: int, threshold: float, args: argparse.Namespace,
+                prefilter: str | None = None) -> tuple[float, dict, list[np.ndarray]]:
+    """Our render stage: (wall seconds, render.json timings, beauty frames); ``prefilter`` is OIDN's
+    (the farm's default when None)."""
+    from batch.options import DEFAULT_DENOISE_PREFILTER
     from batch.pipeline import default_commands
 
     _copy_prepared(prepared, out)
     cmd = default_commands(None, None).blender_job(
         ["render", "--work", str(out), "--asset-id", prepared.name, "--frames", str(args.frames),
          "--resolution", str(args.resolution), "--samples", str(samples), "--adaptive-threshold", str(threshold),
-         "--aov-samples", str(args.aov_samples), "--probe", str(args.probe), "--seed", "0",
+         "--denoise-prefilter", prefilter or DEFAULT_DENOISE_PREFILTER, "--aov-samples", str(args.aov_samples), "--probe", str(args.probe), "--seed", "0",
          "--threads", str(args.threads)])
     seconds = _run(cmd, out / "logs" / "render")
     timings = json.loads((out / "render.json").read_text())["timings_s"]
