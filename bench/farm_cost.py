@@ -1,25 +1,25 @@
-"""What one asset costs the farm at the real defaults, stage by stage, and what the fit's cluster step buys.
+"""What one asset costs the farm at the real defaults, stage by stage, before and after a cheaper beauty pass.
 
 1. The farm. Each asset goes through ``batch/render_dataset.py`` on its own at the
    defaults (512 px, 16 frames, 16 spp, 300 fit steps, the shipped decoder), with
    ``--max-texture`` above every texture (checked: no "downscaled" note) and one
    worker, so every child renders or fits with one thread, as on a node that runs
-   one asset per core. Per stage, wall and CPU seconds from the manifest (each child
-   times its own stages with ``time.process_time``); the run's whole CPU comes from
+   one asset per core. Per stage, CPU seconds from the manifest (each child times its
+   own stages with ``time.process_time``); the run's whole CPU comes from
    ``getrusage(RUSAGE_CHILDREN)``, and what no child claims is the orchestrator's
-   ("overhead").
+   ("overhead"). Twice: "before" with OIDN's accurate prefilter (the farm's earlier
+   setting), "after" at today's defaults (bench/beauty_denoise.py measures what the
+   fast prefilter costs in accuracy). The beauty pass is the biggest stage either way.
 2. The fit at each cluster step of ``--sweep``, on the farm's own enhanced material
-   folders, as ``batch/fit_job.py`` runs it (read and merge, fit), CPU-timed here.
-   The fit costs per vector fitted, and merging texels whose parameters lie within
-   a step of each other is what shrinks that count.
-3. Accuracy at each step: per textured material, the 32 x 32 texel crop with the most
-   distinct vectors (where merging has the most to lose), as a flat patch seen from
-   45 degrees under the probe (``bench/dedupe.py``), analytic against neural, LDR-FLIP.
+   folders, as ``batch/fit_job.py`` runs it (read and merge, fit), CPU-timed here, and
+   its accuracy: per textured material, the 32 x 32 texel crop with the most distinct
+   vectors (where merging has the most to lose), as a flat patch seen from 45 degrees
+   under the probe (``bench/dedupe.py``), analytic against neural, LDR-FLIP. The fit
+   shares a fixed budget of samples among the vectors it fits, so merging changes its
+   accuracy as well as its cost.
 
-The rule picks the coarsest swept step whose crops' mean FLIP is within ``TOLERANCE``
-of the finest step's; "before" is the farm at the fit's own step (1/256), "after" the
-same stages with the fit at the picked step (the sweep's fit CPU plus the farm's fixed
-fit cost: torch's start, writing the latents).
+The cost model prices 10 000 assets and the paper's 10 640-asset dataset on 16-core
+nodes from the mean CPU seconds per asset, before and after.
 
     python -m bench.farm_cost [--assets WaterBottle ...] [--work DIR] [--sweep 256 128 64 32]
 """
@@ -41,7 +41,7 @@ import numpy as np
 import torch
 
 from batch.options import DEFAULT_CLUSTER_STEP
-from bench.common import FLIP_CONVENTION, REPO, add_out_argument, child_env, pyplot, save_chart, write_report
+from bench.common import FLIP_CONVENTION, REPO, add_out_argument, child_env, provenance, pyplot, save_chart, write_report
 from bench.dedupe import flat_patch
 from richmat_addon.core import material_folder
 from richmat_addon.core.stage_clock import StageClock
@@ -59,22 +59,24 @@ STAGES = ("import", "enhance", "bake", "fit", "beauty", "intrinsics", "encode")
 MAX_TEXTURE = 8192  # above every sample texture (2048 at most): nothing downscaled
 FIT_STEPS = 300  # the farm's --fit-steps default
 CROP = 32
-TOLERANCE = 0.002  # FLIP a coarser step may add to the crops' mean
+SIDES = {"before": ["--denoise-prefilter", "accurate"], "after": []}  # farm arguments besides the defaults
 PAPER = {"assets": 10_640, "gpus": 80, "hours": 22.0}  # the paper's dataset and what rendering it took
 NODE_CORES = 16
 
 
-def run_farm(asset: Path, work: Path) -> dict:
-    """One farm run of one asset at the defaults: its manifest, wall seconds and CPU seconds of everything."""
+def run_farm(asset: Path, work: Path, extra: list[str]) -> dict:
+    """One farm run of one asset at the defaults but ``extra`` arguments: its manifest, wall seconds and
+    CPU seconds of everything, and the commit that ran it."""
     listing, out = work / "list.txt", work / "out"
     listing.write_text(f"{asset}\n")
     before, start = resource.getrusage(resource.RUSAGE_CHILDREN), time.monotonic()
     subprocess.run([sys.executable, str(REPO / "batch" / "render_dataset.py"), "--input", str(listing),
                     "--output", str(out), "--max-texture", str(MAX_TEXTURE), "--workers", "1",
-                    "--timeout", "86400", "--retries", "0"], env=child_env(), cwd=REPO, check=True)
+                    "--timeout", "86400", "--retries", "0", *extra], env=child_env(), cwd=REPO, check=True)
     wall, after = time.monotonic() - start, resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return farm_record(asset.stem, next(p.parent for p in out.glob("*/manifest.json")), wall, cpu)
+    record = farm_record(asset.stem, next(p.parent for p in out.glob("*/manifest.json")), wall, cpu)
+    return {**record, "arguments": extra, "git_commit": provenance()["git_commit"]}
 
 
 def farm_record(asset: str, folder: Path, wall: float, cpu: float) -> dict:
@@ -183,22 +185,6 @@ def sweep(farm: dict, steps: list[float], model: weights.NeuralModel, env: EnvMa
     return rows
 
 
-def pick_step(fits: list[dict], steps: list[float]) -> tuple[float, dict[str, float]]:
-    """The coarsest step whose crops' mean FLIP is within ``TOLERANCE`` of the finest step's, and the
-    mean FLIP per step."""
-    flips = {s: float(np.mean([r["flip"] for r in fits if r["step"] == s and "flip" in r])) for s in steps}
-    finest = flips[min(steps)]
-    return max(s for s in steps if flips[s] <= finest + TOLERANCE), {f"1/{round(1 / s)}": f for s, f in flips.items()}
-
-
-def fit_cpu_at(farm: dict, fits: list[dict], step: float) -> float:
-    """The farm's fit stage with the fit at ``step``: its fixed part (torch's start, writing latents:
-    the farm's fit less its read and fit) plus this bench's read and fit at ``step``."""
-    parts = sum(m["cpu_s"].get(k, 0.0) for m in farm["materials"].values() for k in ("read", "fit"))
-    fixed = farm["cpu_s"]["fit_process"] - parts
-    return fixed + sum(r["total_cpu"] for r in fits if r["asset"] == farm["asset"] and r["step"] == step)
-
-
 def cost_model(cpu_per_asset: float) -> dict:
     """CPU-hours per 10 000 assets, and the paper's dataset on N 16-core nodes (one asset per core)."""
     total_hours = PAPER["assets"] * cpu_per_asset / 3600
@@ -234,8 +220,8 @@ def chart(report: dict, path: Path) -> None:
     a.set_yticks(range(len(bars)), [f"{asset}\n{side}" for asset, side, _ in bars], fontsize=8)
     a.invert_yaxis()
     a.set_xlabel("CPU seconds per asset (one thread per child)")
-    a.set_title(f"Farm at 512 px x 16 frames, full-size textures: fit at step 1/{round(1 / report['old_step'])} "
-                f"(before) and 1/{round(1 / report['new_step'])} (after)", fontsize=9)
+    a.set_title("Farm at 512 px x 16 frames, full-size textures: OIDN prefilter accurate (before) "
+                "and fast (after)", fontsize=9)
     a.legend(fontsize=8)
     for asset in dict.fromkeys(r["asset"] for r in report["fits"]):
         rows = [r for r in report["fits"] if r["asset"] == asset]
@@ -265,39 +251,39 @@ def main() -> None:
     torch.set_num_threads(1)
     model, env = weights.load(weights.SHIPPED), EnvMap.load(DEFAULT_PROBE)
     steps = sorted({1 / n for n in args.sweep} | {QUANT}, reverse=True)
-    farms, fits = [], []
+    table, farms, fits = [], [], []
     with tempfile.TemporaryDirectory(prefix="richmat_farm_cost_") as tmp:
         work = args.work or Path(tmp)
         for name in args.assets:
-            folder = work / name
-            folder.mkdir(parents=True, exist_ok=True)
-            farm = cached(folder / "farm.json", {"cluster_step": DEFAULT_CLUSTER_STEP},
-                          partial(run_farm, MODELS / f"{name}.glb", folder))
-            print(f"{name}: farm {farm['cpu_total']:.0f} CPU s, {farm['wall_total']:.0f} s wall", flush=True)
-            fits += cached(folder / "sweep.json", {"steps": steps}, partial(sweep, farm, steps, model, env))
-            farms.append(farm)
-    new, flips = pick_step(fits, steps)
-    table = []
-    for farm in farms:
-        before = stage_table(farm)["cpu"]
-        table.append({"asset": farm["asset"], "before": before,
-                      "after": dict(before, fit=fit_cpu_at(farm, fits, new)),
-                      "farm_fit_vs_sweep_at_1_256": [before["fit"], fit_cpu_at(farm, fits, QUANT)]})
-    total = {side: float(np.mean([sum(r[side].values()) for r in table])) for side in ("before", "after")}
-    report = {"settings": farms[0]["settings"], "assets": [f["asset"] for f in farms], "threads_per_child": 1,
+            runs = {}
+            for side, extra in SIDES.items():
+                folder = work / name / side
+                folder.mkdir(parents=True, exist_ok=True)
+                runs[side] = cached(folder / "farm.json", {"arguments": extra},
+                                    partial(run_farm, MODELS / f"{name}.glb", folder, extra))
+                print(f"{name} {side}: {runs[side]['cpu_total']:.0f} CPU s, {runs[side]['wall_total']:.0f} s wall",
+                      flush=True)
+            fits += cached(work / name / "sweep.json", {"steps": steps}, partial(sweep, runs["after"], steps, model, env))
+            farms += [{"side": side, **run} for side, run in runs.items()]
+            table.append({"asset": name, **{side: stage_table(run)["cpu"] for side, run in runs.items()}})
+    total = {side: float(np.mean([sum(r[side].values()) for r in table])) for side in SIDES}
+    flips = {f"1/{round(1 / s)}": float(np.mean([r["flip"] for r in fits if r["step"] == s and "flip" in r]))
+             for s in steps}
+    fit_cpu = {f"1/{round(1 / s)}": float(sum(r["total_cpu"] for r in fits if r["step"] == s)) for s in steps}
+    report = {"settings": {side: next(f["settings"] for f in farms if f["side"] == side) for side in SIDES},
+              "assets": args.assets, "threads_per_child": 1, "sides": SIDES,
               "cpu_measure": "time.process_time per child stage (user + system); the run's total by "
                              "getrusage(RUSAGE_CHILDREN)",
-              "flip_convention": FLIP_CONVENTION, "crop": CROP, "tolerance": TOLERANCE, "mean_flip_per_step": flips,
-              "old_step": QUANT, "new_step": new, "farm_default_step": DEFAULT_CLUSTER_STEP,
+              "flip_convention": FLIP_CONVENTION, "crop": CROP, "farm_default_step": DEFAULT_CLUSTER_STEP,
+              "sweep_mean_crop_flip": flips, "sweep_fit_cpu_all_assets": fit_cpu,
               "farm": farms, "fits": fits, "before_after": table,
               "stage_totals": {side: {s: sum(r[side][s] for r in table) for s in (*STAGES, "overhead")}
-                               for side in ("before", "after")},
-              "biggest_stage": {side: max(STAGES, key=lambda s: sum(r[side][s] for r in table))
-                                for side in ("before", "after")},
-              "cost_model": {side: cost_model(total[side]) for side in ("before", "after")}}
+                               for side in SIDES},
+              "biggest_stage": {side: max(STAGES, key=lambda s: sum(r[side][s] for r in table)) for side in SIDES},
+              "cost_model": {side: cost_model(total[side]) for side in SIDES}}
     write_report(args.out, report, [weights.SHIPPED])
     chart(report, args.out.with_suffix(".png"))
-    print(json.dumps({k: report[k] for k in ("biggest_stage", "mean_flip_per_step", "new_step", "cost_model")},
+    print(json.dumps({k: report[k] for k in ("biggest_stage", "stage_totals", "sweep_mean_crop_flip", "cost_model")},
                      indent=1))
 
 
