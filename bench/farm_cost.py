@@ -5,11 +5,11 @@
    ``--max-texture`` above every texture (checked: no "downscaled" note) and one
    worker, so every child renders or fits with one thread, as on a node that runs
    one asset per core. Per stage, CPU seconds from the manifest (each child times its
-   own stages with ``time.process_time``); the run's whole CPU comes from
-   ``getrusage(RUSAGE_CHILDREN)``, and what no child claims is the orchestrator's
-   ("overhead"). Twice: "before" with OIDN's accurate prefilter (the farm's earlier
-   setting), "after" at today's defaults (bench/beauty_denoise.py measures what the
-   fast prefilter costs in accuracy). The beauty pass is the biggest stage either way.
+   own stages with ``time.process_time``); the run's whole CPU comes from ``wait4``,
+   and what no child claims is the orchestrator's ("overhead"). Twice, at the same
+   time, so that the machine's load hits both alike: "before" with OIDN's accurate
+   prefilter (the farm's earlier setting), "after" at today's defaults
+   (bench/beauty_denoise.py measures what the fast prefilter costs in accuracy).
 2. The fit at each cluster step of ``--sweep``, on the farm's own enhanced material
    folders, as ``batch/fit_job.py`` runs it (read and merge, fit), CPU-timed here, and
    its accuracy: per textured material, the 32 x 32 texel crop with the most distinct
@@ -27,12 +27,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
+import os
 import subprocess
 import sys
 import tempfile
 import time
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -66,15 +67,19 @@ NODE_CORES = 16
 
 def run_farm(asset: Path, work: Path, extra: list[str]) -> dict:
     """One farm run of one asset at the defaults but ``extra`` arguments: its manifest, wall seconds and
-    CPU seconds of everything, and the commit that ran it."""
+    CPU seconds of everything (``wait4``'s usage of the run and every descendant it waited for), and
+    the commit that ran it."""
     listing, out = work / "list.txt", work / "out"
     listing.write_text(f"{asset}\n")
-    before, start = resource.getrusage(resource.RUSAGE_CHILDREN), time.monotonic()
-    subprocess.run([sys.executable, str(REPO / "batch" / "render_dataset.py"), "--input", str(listing),
-                    "--output", str(out), "--max-texture", str(MAX_TEXTURE), "--workers", "1",
-                    "--timeout", "86400", "--retries", "0", *extra], env=child_env(), cwd=REPO, check=True)
-    wall, after = time.monotonic() - start, resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    start = time.monotonic()
+    child = subprocess.Popen([sys.executable, str(REPO / "batch" / "render_dataset.py"), "--input", str(listing),
+                              "--output", str(out), "--max-texture", str(MAX_TEXTURE), "--workers", "1",
+                              "--timeout", "86400", "--retries", "0", *extra], env=child_env(), cwd=REPO)
+    _, status, usage = os.wait4(child.pid, 0)
+    child.returncode = os.waitstatus_to_exitcode(status)
+    if child.returncode:
+        raise SystemExit(f"{asset.name}: the farm run {extra} failed ({child.returncode})")
+    wall, cpu = time.monotonic() - start, usage.ru_utime + usage.ru_stime
     record = farm_record(asset.stem, next(p.parent for p in out.glob("*/manifest.json")), wall, cpu)
     return {**record, "arguments": extra, "git_commit": provenance()["git_commit"]}
 
@@ -185,6 +190,21 @@ def sweep(farm: dict, steps: list[float], model: weights.NeuralModel, env: EnvMa
     return rows
 
 
+def both_sides(asset: Path, work: Path) -> dict[str, dict]:
+    """The asset's farm run for every side of ``SIDES``, all at once, so that the machine's load hits
+    them alike (one thread each)."""
+    def side(name: str) -> dict:
+        folder = work / name
+        folder.mkdir(parents=True, exist_ok=True)
+        return cached(folder / "farm.json", {"arguments": SIDES[name]}, partial(run_farm, asset, folder, SIDES[name]))
+
+    with ThreadPoolExecutor(len(SIDES)) as pool:
+        runs = dict(zip(SIDES, pool.map(side, SIDES)))
+    for name, run in runs.items():
+        print(f"{asset.stem} {name}: {run['cpu_total']:.0f} CPU s, {run['wall_total']:.0f} s wall", flush=True)
+    return runs
+
+
 def cost_model(cpu_per_asset: float) -> dict:
     """CPU-hours per 10 000 assets, and the paper's dataset on N 16-core nodes (one asset per core)."""
     total_hours = PAPER["assets"] * cpu_per_asset / 3600
@@ -255,14 +275,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="richmat_farm_cost_") as tmp:
         work = args.work or Path(tmp)
         for name in args.assets:
-            runs = {}
-            for side, extra in SIDES.items():
-                folder = work / name / side
-                folder.mkdir(parents=True, exist_ok=True)
-                runs[side] = cached(folder / "farm.json", {"arguments": extra},
-                                    partial(run_farm, MODELS / f"{name}.glb", folder, extra))
-                print(f"{name} {side}: {runs[side]['cpu_total']:.0f} CPU s, {runs[side]['wall_total']:.0f} s wall",
-                      flush=True)
+            runs = both_sides(MODELS / f"{name}.glb", work / name)
             fits += cached(work / name / "sweep.json", {"steps": steps}, partial(sweep, runs["after"], steps, model, env))
             farms += [{"side": side, **run} for side, run in runs.items()]
             table.append({"asset": name, **{side: stage_table(run)["cpu"] for side, run in runs.items()}})
@@ -272,8 +285,8 @@ def main() -> None:
     fit_cpu = {f"1/{round(1 / s)}": float(sum(r["total_cpu"] for r in fits if r["step"] == s)) for s in steps}
     report = {"settings": {side: next(f["settings"] for f in farms if f["side"] == side) for side in SIDES},
               "assets": args.assets, "threads_per_child": 1, "sides": SIDES,
-              "cpu_measure": "time.process_time per child stage (user + system); the run's total by "
-                             "getrusage(RUSAGE_CHILDREN)",
+              "cpu_measure": "time.process_time per child stage (user + system); the run's total by wait4; "
+                             "both sides of an asset run at once",
               "flip_convention": FLIP_CONVENTION, "crop": CROP, "farm_default_step": DEFAULT_CLUSTER_STEP,
               "sweep_mean_crop_flip": flips, "sweep_fit_cpu_all_assets": fit_cpu,
               "farm": farms, "fits": fits, "before_after": table,
