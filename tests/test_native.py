@@ -185,6 +185,18 @@ def test_the_farm_takes_the_graph_and_hashes_it():
         parser.parse_args(base + ["--graph", "svm"])
 
 
+def test_the_farm_takes_the_denoise_prefilter_and_hashes_it():
+    """OIDN's fast prefilter is the default (bench/beauty_denoise.py); the other renders other frames."""
+    parser = options.build_parser()
+    base = ["--input", "in", "--output", "out"]
+    assert parser.parse_args(base).denoise_prefilter == "fast"
+    fast, accurate = (options.settings_of(parser.parse_args(base + ["--denoise-prefilter", p]))
+                      for p in ("fast", "accurate"))
+    assert accurate.denoise_prefilter == "accurate" and accurate.hash() != fast.hash()
+    with pytest.raises(SystemExit):
+        parser.parse_args(base + ["--denoise-prefilter", "none"])
+
+
 ADDON_BALL = r'''
 bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16)
 bpy.ops.object.shade_smooth()
