@@ -8,9 +8,9 @@ once, ``bench.render_speed.prepare``) at the farm's defaults otherwise, both at 
 same time so that the shared machine's load hits them alike; each is compared by mean
 FLIP (LDR, AgX PNGs) with a reference of the same frames at ``--reference-samples`` spp
 (accurate prefilter). Seconds per frame: the beauty stage's CPU seconds (one render
-thread) over its frames. The assets are prepared
-as bench/render_speed.py prepares them (textures cut to 128 px, 20 fit steps): the
-denoiser's cost depends on the image, not on them.
+thread) over its frames. The assets are prepared as bench/render_speed.py prepares them
+(textures cut to 128 px, 20 fit steps): the denoiser's cost depends on the image, not on
+them.
 
     python -m bench.beauty_denoise [--assets A.glb B.glb] [--frames 4] [--reference-samples 128]
 """
