@@ -27,7 +27,7 @@ import numpy as np
 
 from batch.options import DEFAULT_DENOISE_PREFILTER, DENOISE_PREFILTERS
 from bench.common import add_out_argument, pyplot, save_chart, write_report
-from bench.render_speed import _frames, mean_flip, parse, prepare, render_ours
+from bench.render_speed import beauty_frames, mean_flip, parse, prepare, render_ours
 
 SAMPLES, THRESHOLD = 16, 0.01  # the farm's defaults (batch/options.py)
 
@@ -44,7 +44,7 @@ def main(argv: list[str]) -> int:
     for asset in prepared:
         ref_dir = args.work / "ref" / asset.name
         if (ref_dir / "render.json").is_file():  # a reference this work folder already holds
-            reference = _frames(ref_dir)
+            reference = beauty_frames(ref_dir)
         else:
             _, _, reference = render_ours(asset, ref_dir, args.reference_samples, 0.001, args, "accurate")
 

@@ -50,20 +50,26 @@ def flat_patch(bsdf_at, env: EnvMap, size: int, seed: int) -> np.ndarray:  # typ
     return agx(shade_gbuffer(bsdf_at, env, normals, views, np.ones((size, size), bool), spp=64, seed=seed))
 
 
+def crop_rows(width: int, r0: int, c0: int) -> np.ndarray:
+    """Texel indices (row-major, ``width`` texels a row) of the CROP x CROP crop at (r0, c0)."""
+    return (np.arange(r0, r0 + CROP)[:, None] * width + np.arange(c0, c0 + CROP)[None, :]).ravel()
+
+
+def texel_colours(folder: Path, shape: tuple[int, int], rows: np.ndarray) -> np.ndarray:
+    """Base colours (N, 3) of the texels ``rows`` of a ``shape`` texture (the base colour map may be smaller)."""
+    base = material_folder.read(folder).map("base_color")
+    if base.is_constant:
+        return np.broadcast_to(base.value[:3], (len(rows), 3)).astype(np.float32)
+    img = base.value
+    ys, xs = np.divmod(rows, shape[1])
+    return np.ascontiguousarray(img[ys * img.shape[0] // shape[0], xs * img.shape[1] // shape[1], :3], np.float32)
+
+
 def crop_vectors(folder: Path, mv: MaterialVectors) -> tuple[np.ndarray, np.ndarray]:
     """Texel vectors (CROP^2, 22) and base colours of the crop at the texture's centre."""
     h, w = mv.shape  # type: ignore[misc]
-    r0, c0 = (h - CROP) // 2, (w - CROP) // 2
-    rows = (np.arange(r0, r0 + CROP)[:, None] * w + np.arange(c0, c0 + CROP)[None, :]).ravel()
-    vectors = mv.unique[mv.inverse[rows]]
-    base = material_folder.read(folder).map("base_color")
-    if not base.is_constant:
-        img = base.value
-        ys, xs = np.divmod(rows, w)
-        colours = img[ys * img.shape[0] // h, xs * img.shape[1] // w, :3]
-    else:
-        colours = np.broadcast_to(base.value[:3], (len(rows), 3))
-    return vectors, np.ascontiguousarray(colours, np.float32)
+    rows = crop_rows(w, (h - CROP) // 2, (w - CROP) // 2)
+    return mv.unique[mv.inverse[rows]], texel_colours(folder, (h, w), rows)
 
 
 def equal_budget_fits(model: weights.NeuralModel, vectors: np.ndarray, seed: int) -> dict[str, tuple]:

@@ -43,8 +43,7 @@ import torch
 
 from batch.options import DEFAULT_CLUSTER_STEP
 from bench.common import FLIP_CONVENTION, REPO, add_out_argument, child_env, provenance, pyplot, save_chart, write_report
-from bench.dedupe import flat_patch
-from richmat_addon.core import material_folder
+from bench.dedupe import CROP, crop_rows, flat_patch, texel_colours
 from richmat_addon.core.stage_clock import StageClock
 from richmat_addon.core.texel_vectors import QUANT, read_vectors, texel_matrix
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
@@ -59,7 +58,6 @@ ASSETS = ("WaterBottle", "CesiumMilkTruck", "FlightHelmet")
 STAGES = ("import", "enhance", "bake", "fit", "beauty", "intrinsics", "encode")
 MAX_TEXTURE = 8192  # above every sample texture (2048 at most): nothing downscaled
 FIT_STEPS = 300  # the farm's --fit-steps default
-CROP = 32
 SIDES = {"before": ["--denoise-prefilter", "accurate"], "after": []}  # farm arguments besides the defaults
 PAPER = {"assets": 10_640, "gpus": 80, "hours": 22.0}  # the paper's dataset and what rendering it took
 NODE_CORES = 16
@@ -99,24 +97,18 @@ def farm_record(asset: str, folder: Path, wall: float, cpu: float) -> dict:
             "timings_s": manifest["timings_s"], "cpu_s": manifest["cpu_s"], "materials": materials}
 
 
-def stage_table(farm: dict) -> dict[str, dict[str, float]]:
-    """The issue's stages from the children's records: a child's time no sub-stage claims (its
-    start, Blender's or torch's import, opening the scene) goes to the stage it opens."""
-    def get(record: dict, key: str) -> float:
-        return float(record.get(key, 0.0))
-
-    wall, cpu = farm["timings_s"], farm["cpu_s"]
-    out = {}
-    for kind, record, whole in (("wall", wall, {k: get(wall, k) for k in ("prepare", "fit", "render")}),
-                                ("cpu", cpu, {k: get(cpu, f"{k}_process") for k in ("prepare", "fit", "render")})):
-        row = {"enhance": get(record, "prepare_enhance"), "bake": get(record, "prepare_bake"), "fit": whole["fit"],
-               "intrinsics": get(record, "render_intrinsics"), "encode": get(record, "render_video")}
-        row["import"] = whole["prepare"] - row["enhance"] - row["bake"]
-        row["beauty"] = whole["render"] - row["intrinsics"] - row["encode"]
-        out[kind] = row
-    out["cpu"]["overhead"] = farm["cpu_total"] - sum(get(cpu, f"{k}_process") for k in ("prepare", "fit", "render"))
-    out["wall"]["overhead"] = farm["wall_total"] - sum(get(wall, k) for k in ("prepare", "fit", "render"))
-    return out
+def stage_table(farm: dict) -> dict[str, float]:
+    """CPU seconds of the issue's stages from the children's records: a child's time no sub-stage
+    claims (its start, Blender's or torch's import, opening the scene) goes to the stage it opens."""
+    cpu = farm["cpu_s"]
+    get = lambda key: float(cpu.get(key, 0.0))  # noqa: E731
+    whole = {k: get(f"{k}_process") for k in ("prepare", "fit", "render")}
+    row = {"enhance": get("prepare_enhance"), "bake": get("prepare_bake"), "fit": whole["fit"],
+           "intrinsics": get("render_intrinsics"), "encode": get("render_video")}
+    row["import"] = whole["prepare"] - row["enhance"] - row["bake"]
+    row["beauty"] = whole["render"] - row["intrinsics"] - row["encode"]
+    row["overhead"] = farm["cpu_total"] - sum(whole.values())
+    return row
 
 
 def varied_crop(vectors: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -125,21 +117,7 @@ def varied_crop(vectors: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     places = [(r0, c0) for r0 in range(0, h - CROP + 1, max(1, (h - CROP) // 7))
               for c0 in range(0, w - CROP + 1, max(1, (w - CROP) // 7))]
 
-    def rows(place: tuple[int, int]) -> np.ndarray:
-        return (np.arange(place[0], place[0] + CROP)[:, None] * w + np.arange(place[1], place[1] + CROP)[None, :]).ravel()
-
-    return rows(max(places, key=lambda place: len(np.unique(vectors[rows(place)], axis=0))))
-
-
-def texel_colours(folder: Path, shape: tuple[int, int], rows: np.ndarray) -> torch.Tensor:
-    """Base colours (N, 3) of the texels ``rows`` (the base colour map may be smaller than the others)."""
-    base = material_folder.read(folder).map("base_color")
-    if base.is_constant:
-        return torch.from_numpy(np.broadcast_to(base.value[:3], (len(rows), 3)).astype(np.float32))
-    ys, xs = np.divmod(rows, shape[1])
-    img = base.value
-    return torch.from_numpy(np.ascontiguousarray(img[ys * img.shape[0] // shape[0], xs * img.shape[1] // shape[1], :3],
-                                                 np.float32))
+    return crop_rows(w, *max(places, key=lambda place: len(np.unique(vectors[crop_rows(w, *place)], axis=0))))
 
 
 class Accuracy:
@@ -150,7 +128,7 @@ class Accuracy:
         self.env = env
         self.rows = varied_crop(vectors, shape) if shape and min(shape) >= CROP else None
         if self.rows is not None:
-            self.colours = texel_colours(folder, shape, self.rows)
+            self.colours = torch.from_numpy(texel_colours(folder, shape, self.rows))
             analytic = LayeredBsdf(params_from_vectors(torch.from_numpy(vectors[self.rows])), self.colours)
             self.reference = flat_patch(lambda n: analytic, env, CROP, 0)
 
@@ -278,7 +256,7 @@ def main() -> None:
             runs = both_sides(MODELS / f"{name}.glb", work / name)
             fits += cached(work / name / "sweep.json", {"steps": steps}, partial(sweep, runs["after"], steps, model, env))
             farms += [{"side": side, **run} for side, run in runs.items()]
-            table.append({"asset": name, **{side: stage_table(run)["cpu"] for side, run in runs.items()}})
+            table.append({"asset": name, **{side: stage_table(run) for side, run in runs.items()}})
     total = {side: float(np.mean([sum(r[side].values()) for r in table])) for side in SIDES}
     flips = {f"1/{round(1 / s)}": float(np.mean([r["flip"] for r in fits if r["step"] == s and "flip" in r]))
              for s in steps}

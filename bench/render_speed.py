@@ -104,7 +104,7 @@ def _copy_prepared(prepared: Path, out: Path) -> None:
         (shutil.copytree if src.is_dir() else shutil.copy2)(src, out / name)
 
 
-def _frames(folder: Path) -> list[np.ndarray]:
+def beauty_frames(folder: Path) -> list[np.ndarray]:
     from PIL import Image
 
     return [np.asarray(Image.open(p), np.float32)[..., :3] / 255.0 for p in sorted((folder / "rgb").glob("*.png"))]
@@ -125,7 +125,7 @@ def render_ours(prepared: Path, out: Path, samples: int, threshold: float, args:
          "--threads", str(args.threads)])
     seconds = _run(cmd, out / "logs" / "render")
     timings = json.loads((out / "render.json").read_text())["timings_s"]
-    return seconds, timings, _frames(out)
+    return seconds, timings, beauty_frames(out)
 
 
 def render_naive(prepared: Path, out: Path, samples: int, threshold: float, args: argparse.Namespace
@@ -136,7 +136,7 @@ def render_naive(prepared: Path, out: Path, samples: int, threshold: float, args
            str(args.frames), str(args.resolution), str(samples), str(threshold), str(args.probe),
            str(args.threads)]
     seconds = _run(cmd, out / "logs" / "naive")
-    return seconds, _frames(out)
+    return seconds, beauty_frames(out)
 
 
 def naive_job(argv: list[str]) -> None:
