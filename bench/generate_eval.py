@@ -45,7 +45,7 @@ from bench.common import REPORTS, pyplot, save_chart, write_report
 from bench.held_out_assets import RealHeldOut, real_held_out
 from richmat_addon.core.enhance import baseline, enhance, is_metallic
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
-from torch_models.generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural, text
+from torch_models.generator import DEFAULT_GUIDANCE, DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural, text
 from torch_models.generator import generate as gen
 from torch_models.generator.dit import LatentGenerator
 from torch_models.generator.encoding import latent_texture
@@ -209,7 +209,7 @@ def main() -> int:
     ap.add_argument("--eval-views", type=int, default=16, help="views rendered for the metrics")
     ap.add_argument("--steps", type=int, default=DEFAULT_STEPS)
     ap.add_argument("--samples", type=int, default=DEFAULT_SAMPLES, help="samples averaged per object")
-    ap.add_argument("--guidance", type=float, default=2.0)
+    ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE)
     ap.add_argument("--resolution", type=int, default=None, help="evaluation render size (default: 64, 96 with --real)")
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--out", type=Path, default=None,

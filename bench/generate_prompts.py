@@ -34,7 +34,7 @@ from bench.held_out_assets import real_held_out
 from richmat_addon.core.enhance import enhance, is_metallic
 from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.maps import ParamMap
-from torch_models.generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural
+from torch_models.generator import DEFAULT_GUIDANCE, DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural
 from torch_models.generator import generate as gen
 from torch_models.generator.mesh_input import MeshInput
 from torch_models.generator.train import GeneratorTrainConfig
@@ -85,6 +85,27 @@ def pair_flip(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.mean([mean_flip(x, y) for x, y in zip(a, b)]))
 
 
+def prompt_pairs(references: list[np.ndarray], generated: list[np.ndarray]) -> dict[str, dict[str, float]]:
+    """One object's FLIP between the renders of every pair of prompts (``PROMPT_TYPES`` order),
+    for the references and for the generations."""
+    return {f"{a}-{b}": {"references": pair_flip(references[i], references[j]),
+                         "generated": pair_flip(generated[i], generated[j])}
+            for (i, a), (j, b) in itertools.combinations(enumerate(PROMPT_TYPES), 2)}
+
+
+def sensitivity(objects: list[dict[str, dict[str, float]]]) -> tuple[dict, float]:
+    """Per pair of prompts and overall, the mean generated FLIP over the mean reference FLIP
+    across objects (each ``prompt_pairs``' output)."""
+    per_pair = {}
+    for key in objects[0]:
+        ref = float(np.mean([o[key]["references"] for o in objects]))
+        out = float(np.mean([o[key]["generated"] for o in objects]))
+        per_pair[key] = {"references_flip": ref, "generated_flip": out, "ratio": out / ref}
+    overall = float(np.mean([p["generated_flip"] for p in per_pair.values()])
+                    / np.mean([p["references_flip"] for p in per_pair.values()]))
+    return per_pair, overall
+
+
 def measure(args: argparse.Namespace) -> tuple[dict, list]:
     model, cfg = gen.load_generator(args.checkpoint)
     size = cfg.corpus.texture_size
@@ -93,8 +114,8 @@ def measure(args: argparse.Namespace) -> tuple[dict, list]:
     for asset_id, inp, prompts in picked:
         renders, row_cells = [], []
         for p in prompts:
-            result = gen.generate(inp, p["prompt"], model, cfg, args.seed, DEFAULT_STEPS, DEFAULT_VIEWS, 2.0, size,
-                                  samples=DEFAULT_SAMPLES)
+            result = gen.generate(inp, p["prompt"], model, cfg, args.seed, DEFAULT_STEPS, DEFAULT_VIEWS,
+                                  args.guidance, size, samples=DEFAULT_SAMPLES)
             ref = render(inp, p["reference"], args.eval_views, args.resolution, args.spp)
             latents, scales = [m.latents for m in result.materials], [m.energy_scale for m in result.materials]
             out = render(inp, latents, args.eval_views, args.resolution, args.spp, scales)
@@ -102,26 +123,17 @@ def measure(args: argparse.Namespace) -> tuple[dict, list]:
             p.update(generated_type=result.type, psnr=psnr(ref, out, ref.sum(-1) > 0))
             row_cells.append((p, [render(inp, lat, 1, args.gallery_size, 32, scale)[0]
                                   for lat, scale in ((p["reference"], None), (latents, scales))]))
-        pairs = {}
-        for (i, a), (j, b) in itertools.combinations(enumerate(PROMPT_TYPES), 2):
-            pairs[f"{a}-{b}"] = {"references": pair_flip(renders[i][0], renders[j][0]),
-                                 "generated": pair_flip(renders[i][1], renders[j][1])}
+        pairs = prompt_pairs([r for r, _ in renders], [g for _, g in renders])
         objects.append({"asset_id": asset_id, "pairs": pairs,
                         "prompts": [{k: v for k, v in p.items() if k != "reference"} for p in prompts]})
         cells.append((asset_id, row_cells))
         print(f"{asset_id}: " + ", ".join(f"{k} {v['generated'] / v['references']:.2f}" for k, v in pairs.items()),
               flush=True)
-    per_pair = {}
-    for key in objects[0]["pairs"]:
-        ref = float(np.mean([o["pairs"][key]["references"] for o in objects]))
-        out = float(np.mean([o["pairs"][key]["generated"] for o in objects]))
-        per_pair[key] = {"references_flip": ref, "generated_flip": out, "ratio": out / ref}
-    overall = float(np.mean([p["generated_flip"] for p in per_pair.values()])
-                    / np.mean([p["references_flip"] for p in per_pair.values()]))
+    per_pair, overall = sensitivity([o["pairs"] for o in objects])
     report = {"kind": "real" if args.real else "procedural", "seed": args.seed, "checkpoint": str(args.checkpoint), "prompt_types": list(PROMPT_TYPES),
               "eval_views": args.eval_views, "resolution": args.resolution, "spp": args.spp,
               "steps": DEFAULT_STEPS, "views": DEFAULT_VIEWS, "samples": DEFAULT_SAMPLES,
-              "ratio": overall, "target": TARGET, "passed": overall >= TARGET, "per_pair": per_pair,
+              "guidance": args.guidance, "ratio": overall, "target": TARGET, "passed": overall >= TARGET, "per_pair": per_pair,
               "median_psnr": float(np.median([p["psnr"] for o in objects for p in o["prompts"]])),
               "objects": objects}
     return report, cells
@@ -175,6 +187,7 @@ def main() -> int:
     ap.add_argument("--eval-views", type=int, default=8, help="views rendered for the FLIPs")
     ap.add_argument("--resolution", type=int, default=64)
     ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE, help="classifier-free guidance scale")
     ap.add_argument("--real", action="store_true",
                     help="the real sample assets the corpus holds out (corpus.held_out) instead, but the metal ones")
     ap.add_argument("--gallery-size", type=int, default=None,

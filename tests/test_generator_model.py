@@ -169,6 +169,16 @@ def test_sampler_is_deterministic_per_seed_and_cfg_one_is_conditional():
     assert not torch.allclose(a, model.sample(cond, steps=4, seed=7, guidance=3.0), atol=1e-4)
 
 
+def test_guidance_one_skips_the_unconditional_pass_and_two_extrapolates_past_the_prompted_model():
+    calls = []
+    cond = lambda x, s: calls.append("cond") or x + 1.0
+    uncond = lambda x, s: calls.append("uncond") or x - 1.0
+    x, sigma = torch.zeros(3), torch.ones(3)
+    assert torch.equal(edm.guided(cond, uncond, 1.0)(x, sigma), x + 1.0) and calls == ["cond"]
+    calls.clear()
+    assert torch.equal(edm.guided(cond, uncond, 2.0)(x, sigma), x + 3.0) and sorted(calls) == ["cond", "uncond"]
+
+
 def test_averaged_samples_are_each_objects_mean_over_its_own_draws():
     model = _perturbed_generator()
     cond = _conditions(b=2, v=2)

@@ -35,7 +35,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS
+from .generator import DEFAULT_GUIDANCE, DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS
 
 HELP = "generate the latent textures of a neural material for a mesh from a text prompt"
 RUN_RECORD = "generate.json"  # the run's record beside the per-material folders of a mesh with several materials
@@ -54,7 +54,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--samples", type=int, default=DEFAULT_SAMPLES,
                         help=f"samples drawn and averaged, an estimate of the posterior mean "
                              f"(default: {DEFAULT_SAMPLES}; each costs one more sampling run)")
-    parser.add_argument("--guidance", type=float, default=2.0, help="classifier-free guidance scale (default: 2)")
+    parser.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE,
+                        help=f"classifier-free guidance scale (default: {DEFAULT_GUIDANCE:g})")
     parser.add_argument("--texture-size", type=int, default=DEFAULT_TEXTURE_SIZE,
                         help=f"largest side of a material's latent texture in texels; each follows its own "
                              f"maps' size up to this (default: {DEFAULT_TEXTURE_SIZE})")

@@ -6,4 +6,5 @@
 DEFAULT_STEPS = 18
 DEFAULT_VIEWS = 12
 DEFAULT_SAMPLES = 4
+DEFAULT_GUIDANCE = 2.0  # classifier-free guidance scale, from bench/generate_guidance.py
 DEFAULT_TEXTURE_SIZE = 64  # latent texture side when the input's base colour is constant or larger

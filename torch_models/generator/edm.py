@@ -97,7 +97,11 @@ def karras_sigmas(steps: int, sigma_min: float = SIGMA_MIN, sigma_max: float = S
 
 
 def guided(cond: Denoiser, uncond: Denoiser, scale: float) -> Denoiser:
-    """Classifier-free guidance: uncond + scale (cond - uncond); scale 1 is the conditional model."""
+    """Classifier-free guidance: uncond + scale (cond - uncond); scale 1 is the conditional model
+    itself, which needs no unconditional pass (half the network evaluations)."""
+    if scale == 1.0:
+        return cond
+
     def denoise(x: Tensor, sigma: Tensor) -> Tensor:
         d_uncond = uncond(x, sigma)
         return d_uncond + scale * (cond(x, sigma) - d_uncond)

@@ -18,7 +18,7 @@ from richmat_addon.core.enhancement_types import METAL_REMAP
 from richmat_addon.core.maps import PbrInputs, ParamMap
 from richmat_addon.core.prompt import prompt_type
 from richmat_addon.core.uv_raster import UvRaster, rasterize as uv_rasterize
-from . import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, text
+from . import DEFAULT_GUIDANCE, DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, text
 from .coverage import TextureSpace, choose_cameras
 from .dit import Conditions, LatentGenerator
 from .mesh_input import MeshInput
@@ -175,7 +175,7 @@ def _texture_spaces(inp: MeshInput, type_: int, largest: int) -> list[_Space]:
 
 
 def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: GeneratorTrainConfig, seed: int = 0,
-             steps: int = DEFAULT_STEPS, views: int = DEFAULT_VIEWS, guidance: float = 2.0,
+             steps: int = DEFAULT_STEPS, views: int = DEFAULT_VIEWS, guidance: float = DEFAULT_GUIDANCE,
              texture_size: int = DEFAULT_TEXTURE_SIZE, progress: Callable[[int, int], None] | None = None,
              guard_energy: bool = True, samples: int = DEFAULT_SAMPLES, cameras: Cameras | None = None) -> Generation:
     """The latent textures of ``inp``'s materials for ``prompt``; ``progress(step, steps)`` follows the
