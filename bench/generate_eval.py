@@ -45,7 +45,7 @@ from bench.common import REPORTS, pyplot, save_chart, write_report
 from bench.held_out_assets import RealHeldOut, real_held_out
 from richmat_addon.core.enhance import baseline, enhance, is_metallic
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
-from torch_models.generator import DEFAULT_GUIDANCE, DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural, text
+from torch_models.generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural, text
 from torch_models.generator import generate as gen
 from torch_models.generator.dit import LatentGenerator
 from torch_models.generator.encoding import latent_texture
@@ -171,7 +171,7 @@ def evaluate(obj: HeldOut | RealHeldOut, model: LatentGenerator, cfg: GeneratorT
     reference = render(obj.inp, obj.reference(size), args.eval_views, args.resolution, args.spp)
     mask = reference.sum(-1) > 0
     row = {"asset_id": obj.asset_id, "prompt": obj.prompt, "type": obj.type, "seconds": seconds,
-           "cpu_seconds": cpu_seconds, "seconds_by_stage": result.seconds, "projection": result.coverage(),
+           "cpu_seconds": cpu_seconds, "guidance": result.guidance, "seconds_by_stage": result.seconds, "projection": result.coverage(),
            "warnings": result.warnings, "invalid_generated_texels": invalid,
            "energy_gaining_before_guard": raw_invalid,
            "texels_darkened_by_guard": float(np.mean(np.concatenate([s.ravel() for s in scales]) < 1))}
@@ -209,7 +209,7 @@ def main() -> int:
     ap.add_argument("--eval-views", type=int, default=16, help="views rendered for the metrics")
     ap.add_argument("--steps", type=int, default=DEFAULT_STEPS)
     ap.add_argument("--samples", type=int, default=DEFAULT_SAMPLES, help="samples averaged per object")
-    ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE)
+    ap.add_argument("--guidance", type=float, default=None, help="default: per enhancement type")
     ap.add_argument("--resolution", type=int, default=None, help="evaluation render size (default: 64, 96 with --real)")
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--out", type=Path, default=None,

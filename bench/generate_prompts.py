@@ -34,7 +34,7 @@ from bench.held_out_assets import real_held_out
 from richmat_addon.core.enhance import enhance, is_metallic
 from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.maps import ParamMap
-from torch_models.generator import DEFAULT_GUIDANCE, DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural
+from torch_models.generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural
 from torch_models.generator import generate as gen
 from torch_models.generator.mesh_input import MeshInput
 from torch_models.generator.train import GeneratorTrainConfig
@@ -120,7 +120,7 @@ def measure(args: argparse.Namespace) -> tuple[dict, list]:
             latents, scales = [m.latents for m in result.materials], [m.energy_scale for m in result.materials]
             out = render(inp, latents, args.eval_views, args.resolution, args.spp, scales)
             renders.append((ref, out))
-            p.update(generated_type=result.type, psnr=psnr(ref, out, ref.sum(-1) > 0))
+            p.update(generated_type=result.type, guidance=result.guidance, psnr=psnr(ref, out, ref.sum(-1) > 0))
             row_cells.append((p, [render(inp, lat, 1, args.gallery_size, 32, scale)[0]
                                   for lat, scale in ((p["reference"], None), (latents, scales))]))
         pairs = prompt_pairs([r for r, _ in renders], [g for _, g in renders])
@@ -187,7 +187,8 @@ def main() -> int:
     ap.add_argument("--eval-views", type=int, default=8, help="views rendered for the FLIPs")
     ap.add_argument("--resolution", type=int, default=64)
     ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE, help="classifier-free guidance scale")
+    ap.add_argument("--guidance", type=float, default=None,
+                    help="classifier-free guidance scale (default: per enhancement type)")
     ap.add_argument("--real", action="store_true",
                     help="the real sample assets the corpus holds out (corpus.held_out) instead, but the metal ones")
     ap.add_argument("--gallery-size", type=int, default=None,

@@ -15,6 +15,7 @@ from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.prompt import prompt_type
 from torch_models.cli import main
 from torch_models.cli_generate import PREVIEW_FRAMES, PREVIEW_SIZE
+from torch_models.generator import guidance_for
 from tests.test_generator_text import text_encoder
 from tests.test_generator_train import TINY
 
@@ -54,6 +55,7 @@ def test_generate_writes_latent_textures_and_a_preview(checkpoint, tmp_path):
     assert np.isfinite(a).all() and np.abs(np.concatenate([a, b], -1)).max() <= 1.0 + 1e-3
     record = neural_folder.read(out).record
     assert record["type"] == 1 and record["views"] == 3 and len(record["cameras"]) == 3
+    assert record["guidance"] == guidance_for(1)  # the one it sampled with, not None
     assert record["coverage"] == record["projection"]  # one material: the mesh's share is its own
     guarded = record["energy_scale"] == "energy_scale.exr"  # the guard ran; its map is written when it darkened
     assert guarded == (record["texels_darkened_by_guard"] > 0) == (out / "energy_scale.exr").exists()
@@ -249,3 +251,22 @@ def test_a_materials_latent_texture_follows_its_maps_up_to_the_guards_budget():
     assert shape((1, 1), (32, 32)) == (32, 32)  # a roughness texture counts as much as a colour one
     assert shape((1, 1)) == (DEFAULT_TEXTURE_SIZE,) * 2 and shape((2048, 1024)) == (DEFAULT_TEXTURE_SIZE, 32)
     assert shape((4, 4)) == (8, 8)
+
+
+def test_guidance_defaults_to_the_prompts_types_and_an_explicit_value_wins(checkpoint, monkeypatch):
+    import torch_models.generator as generator
+    from torch_models.generator import generate as gen
+    from torch_models.generator.mesh_input import load_mesh
+
+    model, cfg = gen.load_generator(checkpoint)
+    used = []
+    monkeypatch.setattr(model, "sample", lambda cond, steps, seed, guidance, *a: used.append(guidance)
+                        or torch.zeros_like(cond.prior))
+    monkeypatch.setattr(generator, "GUIDANCE_BY_TYPE", {1: 1.25})
+    inp = load_mesh(GLB)
+    run = lambda prompt, **kw: gen.generate(inp, prompt, model, cfg, steps=1, views=2, texture_size=16,
+                                            guard_energy=False, **kw)
+    assert run("silver metal with light dust").guidance == 1.25  # Type 1: the table's entry
+    assert run("silver metal with moderate haze").guidance == generator.DEFAULT_GUIDANCE  # Type 0: none
+    assert run("silver metal with light dust", guidance=3.0).guidance == 3.0
+    assert used == [1.25, generator.DEFAULT_GUIDANCE, 3.0]

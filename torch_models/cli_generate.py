@@ -35,7 +35,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .generator import DEFAULT_GUIDANCE, DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS
+from .generator import (DEFAULT_GUIDANCE, DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS,
+                        GUIDANCE_BY_TYPE)
 
 HELP = "generate the latent textures of a neural material for a mesh from a text prompt"
 RUN_RECORD = "generate.json"  # the run's record beside the per-material folders of a mesh with several materials
@@ -54,8 +55,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--samples", type=int, default=DEFAULT_SAMPLES,
                         help=f"samples drawn and averaged, an estimate of the posterior mean "
                              f"(default: {DEFAULT_SAMPLES}; each costs one more sampling run)")
-    parser.add_argument("--guidance", type=float, default=DEFAULT_GUIDANCE,
-                        help=f"classifier-free guidance scale (default: {DEFAULT_GUIDANCE:g})")
+    parser.add_argument("--guidance", type=float, default=None,
+                        help="classifier-free guidance scale (default: per enhancement type, "
+                             + ", ".join(f"{g:g} for Type {t}" for t, g in GUIDANCE_BY_TYPE.items())
+                             + f", {DEFAULT_GUIDANCE:g} for the others)")
     parser.add_argument("--texture-size", type=int, default=DEFAULT_TEXTURE_SIZE,
                         help=f"largest side of a material's latent texture in texels; each follows its own "
                              f"maps' size up to this (default: {DEFAULT_TEXTURE_SIZE})")
@@ -106,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     if inp.unwrapped:
         _write_unwrapped(inp, args.out / "mesh.glb")
     fields = {"prompt": args.prompt, "type": result.type, "seed": args.seed, "steps": args.steps,
-              "views": args.views, "samples": args.samples, "guidance": args.guidance,
+              "views": args.views, "samples": args.samples, "guidance": result.guidance,
               "texture_size": args.texture_size, "coverage": result.coverage(),
               "cameras": result.cameras.camera_to_world.tolist(), "warnings": result.warnings,
               "notes": inp.notes, "seconds": result.seconds, "checkpoint": str(args.checkpoint or gen.SHIPPED),

@@ -18,7 +18,7 @@ from richmat_addon.core.enhancement_types import METAL_REMAP
 from richmat_addon.core.maps import PbrInputs, ParamMap
 from richmat_addon.core.prompt import prompt_type
 from richmat_addon.core.uv_raster import UvRaster, rasterize as uv_rasterize
-from . import DEFAULT_GUIDANCE, DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, text
+from . import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, guidance_for, text
 from .coverage import TextureSpace, choose_cameras
 from .dit import Conditions, LatentGenerator
 from .mesh_input import MeshInput
@@ -94,6 +94,7 @@ class Generation:
     views: Tensor  # (V, 6, h, w) the sampled latent views (prior + residual) the textures were made from
     cameras: Cameras  # the views' cameras (``coverage.choose_cameras``)
     type: int
+    guidance: float  # the classifier-free guidance it was sampled with
     warnings: list[str] = field(default_factory=list)
     seconds: dict[str, float] = field(default_factory=dict)
 
@@ -175,11 +176,12 @@ def _texture_spaces(inp: MeshInput, type_: int, largest: int) -> list[_Space]:
 
 
 def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: GeneratorTrainConfig, seed: int = 0,
-             steps: int = DEFAULT_STEPS, views: int = DEFAULT_VIEWS, guidance: float = DEFAULT_GUIDANCE,
+             steps: int = DEFAULT_STEPS, views: int = DEFAULT_VIEWS, guidance: float | None = None,
              texture_size: int = DEFAULT_TEXTURE_SIZE, progress: Callable[[int, int], None] | None = None,
              guard_energy: bool = True, samples: int = DEFAULT_SAMPLES, cameras: Cameras | None = None) -> Generation:
     """The latent textures of ``inp``'s materials for ``prompt``; ``progress(step, steps)`` follows the
     sampling. Each material's texture follows its maps' size up to ``texture_size`` a side.
+    ``guidance`` None samples with the prompt's type's default (``guidance_for``);
     ``guard_energy`` False skips the energy guard (its scale maps are then all 1); ``samples`` > 1
     averages that many residuals (``LatentGenerator.sample``); ``cameras`` (at the model's resolution)
     replaces the ``views`` chosen to see the surface."""
@@ -204,6 +206,7 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     cond = Conditions(cond_views.conditions(cond_views.latents)[None], text.embed([prompt]), torch.tensor([type_]))
     times["condition_views"] = time.perf_counter() - t0
     t0 = time.perf_counter()
+    guidance = guidance_for(type_) if guidance is None else guidance
     residual = model.sample(cond, steps, seed, guidance, progress, samples)[0]
     times["sampling"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -230,7 +233,8 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     times["energy_guard"] = time.perf_counter() - t0
     materials = [MaterialLatents(m.name, t, s.prior, scale.reshape(t.shape[:2]), p, s.charts)
                  for m, t, s, scale, p in zip(inp.materials, textures, spaces, scales, projections)]
-    generation = Generation(materials, (cond.prior[0] + residual).clamp(-1.0, 1.0), cams, type_, warnings, times)
+    generation = Generation(materials, (cond.prior[0] + residual).clamp(-1.0, 1.0), cams, type_, guidance, warnings,
+                            times)
     stats = generation.coverage()
     if stats["fallback"] > 0.05:
         warnings.append(f"{stats['fallback']:.0%} of the texels lie on UV islands no view saw: "
