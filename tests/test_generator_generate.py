@@ -262,11 +262,18 @@ def test_guidance_defaults_to_the_prompts_types_and_an_explicit_value_wins(check
     used = []
     monkeypatch.setattr(model, "sample", lambda cond, steps, seed, guidance, *a: used.append(guidance)
                         or torch.zeros_like(cond.prior))
-    monkeypatch.setattr(generator, "GUIDANCE_BY_TYPE", {1: 1.25})
+    monkeypatch.setattr(generator, "GUIDANCE_BY_TYPE", {0: 2.0, 1: 1.25})
     inp = load_mesh(GLB)
     run = lambda prompt, **kw: gen.generate(inp, prompt, model, cfg, steps=1, views=2, texture_size=16,
                                             guard_energy=False, **kw)
     assert run("silver metal with light dust").guidance == 1.25  # Type 1: the table's entry
-    assert run("silver metal with moderate haze").guidance == generator.DEFAULT_GUIDANCE  # Type 0: none
+    assert run("silver metal with moderate haze").guidance == 2.0  # Type 0
     assert run("silver metal with light dust", guidance=3.0).guidance == 3.0
-    assert used == [1.25, generator.DEFAULT_GUIDANCE, 3.0]
+    assert used == [1.25, 2.0, 3.0]
+
+
+def test_every_enhancement_type_has_a_guidance():
+    from richmat_addon.core.enhancement_types import TYPES
+    from torch_models.generator import GUIDANCE_BY_TYPE
+
+    assert sorted(GUIDANCE_BY_TYPE) == [t.index for t in TYPES] and min(GUIDANCE_BY_TYPE.values()) >= 1.0
