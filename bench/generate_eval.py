@@ -45,7 +45,8 @@ from bench.common import REPORTS, pyplot, save_chart, write_report
 from bench.held_out_assets import RealHeldOut, real_held_out
 from richmat_addon.core.enhance import baseline, enhance, is_metallic
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
-from torch_models.generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, corpus, procedural, text
+from torch_models.generator import (DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, GUIDANCE_BY_TYPE, corpus, procedural,
+                                    text)
 from torch_models.generator import generate as gen
 from torch_models.generator.dit import LatentGenerator
 from torch_models.generator.encoding import latent_texture
@@ -171,7 +172,8 @@ def evaluate(obj: HeldOut | RealHeldOut, model: LatentGenerator, cfg: GeneratorT
     reference = render(obj.inp, obj.reference(size), args.eval_views, args.resolution, args.spp)
     mask = reference.sum(-1) > 0
     row = {"asset_id": obj.asset_id, "prompt": obj.prompt, "type": obj.type, "seconds": seconds,
-           "cpu_seconds": cpu_seconds, "guidance": result.guidance, "seconds_by_stage": result.seconds, "projection": result.coverage(),
+           "cpu_seconds": cpu_seconds, "guidance": result.guidance, "seconds_by_stage": result.seconds,
+           "projection": result.coverage(),
            "warnings": result.warnings, "invalid_generated_texels": invalid,
            "energy_gaining_before_guard": raw_invalid,
            "texels_darkened_by_guard": float(np.mean(np.concatenate([s.ravel() for s in scales]) < 1))}
@@ -234,7 +236,7 @@ def main() -> int:
     best_baseline = max(overall[k]["psnr"] for k in METHODS[1:])
     report = {"kind": kind, "seed": args.seed, "checkpoint": str(args.checkpoint), "views": args.views,
               "eval_views": args.eval_views, "steps": args.steps, "samples": args.samples,
-              "guidance": args.guidance,
+              "guidance": GUIDANCE_BY_TYPE if args.guidance is None else args.guidance,
               "resolution": args.resolution, "spp": args.spp, "overall": overall,
               "invalid_generated_texels": invalid,
               "energy_gaining_before_guard": float(np.mean([r["energy_gaining_before_guard"] for r in rows])),
