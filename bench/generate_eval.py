@@ -123,6 +123,16 @@ def psnr(reference: np.ndarray, test: np.ndarray, mask: np.ndarray) -> float:
     return math.inf if mse == 0 else 10 * math.log10(1.0 / mse)
 
 
+def views_flip(a: np.ndarray, b: np.ndarray) -> float:
+    """Mean FLIP between two stacks of display-referred views, view by view."""
+    return float(np.mean([mean_flip(x, y) for x, y in zip(a, b)]))
+
+
+def scores(reference: np.ndarray, image: np.ndarray) -> dict[str, float]:
+    """PSNR over the reference's object pixels and mean FLIP of rendered views against the reference's."""
+    return {"psnr": psnr(reference, image, reference.sum(-1) > 0), "flip": views_flip(reference, image)}
+
+
 def latents_of(material: EnhancedMaterial, size: int) -> np.ndarray:
     return latent_texture(material, (size, size))
 
@@ -170,7 +180,6 @@ def evaluate(obj: HeldOut | RealHeldOut, model: LatentGenerator, cfg: GeneratorT
         "retrieval": [np.broadcast_to(retrieved, t.shape).copy() for t in generated],
     }
     reference = render(obj.inp, obj.reference(size), args.eval_views, args.resolution, args.spp)
-    mask = reference.sum(-1) > 0
     row = {"asset_id": obj.asset_id, "prompt": obj.prompt, "type": obj.type, "seconds": seconds,
            "cpu_seconds": cpu_seconds, "guidance": result.guidance, "seconds_by_stage": result.seconds,
            "projection": result.coverage(),
@@ -179,8 +188,7 @@ def evaluate(obj: HeldOut | RealHeldOut, model: LatentGenerator, cfg: GeneratorT
            "texels_darkened_by_guard": float(np.mean(np.concatenate([s.ravel() for s in scales]) < 1))}
     for name, lat in candidates.items():
         img = render(obj.inp, lat, args.eval_views, args.resolution, args.spp, scales if name == "generated" else None)
-        row[name] = {"psnr": psnr(reference, img, mask),
-                     "flip": float(np.mean([mean_flip(r, t) for r, t in zip(reference, img)]))}
+        row[name] = scores(reference, img)
     return row
 
 

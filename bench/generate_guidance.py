@@ -30,7 +30,7 @@ import numpy as np
 import torch
 
 from bench.common import REPORTS, pyplot, save_chart, write_report
-from bench.generate_eval import HeldOut, held_out, held_out_indices, psnr, render
+from bench.generate_eval import HeldOut, held_out, held_out_indices, render, scores
 from bench.generate_prompts import TARGET, prompt_pairs, real_prompts, sensitivity
 from bench.held_out_assets import real_held_out
 from richmat_addon.core.enhancement_types import TYPES
@@ -39,7 +39,6 @@ from torch_models.generator import generate as gen
 from torch_models.generator.mesh_input import MeshInput
 from torch_models.generator.train import GeneratorTrainConfig
 from torch_models.neural import weights
-from torch_models.render.flip import mean_flip
 
 _WORKER: dict = {}  # per worker process: the generator, its config and the objects, loaded once
 PER_TYPE = "per type"  # the summary row of the chosen table (each object at its type's guidance)
@@ -60,7 +59,8 @@ def procedural_by_type(count: int, cfg: GeneratorTrainConfig) -> list[HeldOut]:
 def _load(checkpoint: Path, per_type: int) -> None:
     torch.set_num_threads(1)
     model, cfg = gen.load_generator(checkpoint)
-    _WORKER.update(model=model, cfg=cfg, real=real_held_out(cfg), prompts=real_prompts(cfg),
+    real = real_held_out(cfg)
+    _WORKER.update(model=model, cfg=cfg, real=real, prompts=real_prompts(real, cfg.corpus.texture_size),
                    procedural=procedural_by_type(per_type, cfg))
 
 
@@ -80,14 +80,12 @@ def accuracy_task(task: tuple[str, int, list[float], list[int], int, int, int]) 
     kind, index, guidances, seeds, views, resolution, spp = task
     obj = _WORKER[kind][index]
     ref = render(obj.inp, obj.reference(_WORKER["cfg"].corpus.texture_size), views, resolution, spp)
-    mask = ref.sum(-1) > 0
     rows = []
     for g in guidances:
         for seed in seeds:
             img, type_, cpu = _generated(obj.inp, obj.prompt, seed, g, views, resolution, spp)
             rows.append({"kind": kind, "asset_id": obj.asset_id, "type": type_, "guidance": g, "seed": seed,
-                         "cpu_seconds": cpu, "psnr": psnr(ref, img, mask),
-                         "flip": float(np.mean([mean_flip(r, t) for r, t in zip(ref, img)]))})
+                         "cpu_seconds": cpu, **scores(ref, img)})
     print(f"{kind} {obj.asset_id} (Type {rows[0]['type']}): "
           + ", ".join(f"g {r['guidance']:g} s{r['seed']} {r['psnr']:.2f} dB" for r in rows), flush=True)
     return rows

@@ -29,8 +29,8 @@ import numpy as np
 import torch
 
 from bench.common import REPORTS, provenance, pyplot, save_chart, write_report
-from bench.generate_eval import held_out_indices, latents_of, psnr, render
-from bench.held_out_assets import real_held_out
+from bench.generate_eval import held_out_indices, latents_of, psnr, render, views_flip
+from bench.held_out_assets import RealHeldOut, real_held_out
 from richmat_addon.core.enhance import enhance, is_metallic
 from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.maps import ParamMap
@@ -38,9 +38,7 @@ from torch_models.generator import (DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEW
                                     procedural)
 from torch_models.generator import generate as gen
 from torch_models.generator.mesh_input import MeshInput
-from torch_models.generator.train import GeneratorTrainConfig
 from torch_models.neural import weights
-from torch_models.render.flip import mean_flip
 
 PROMPT_TYPES = (0, 1, 2, 4)  # haze, dust, clearcoat, inner scattering: what a dielectric can be asked for
 TARGET = 0.7
@@ -66,31 +64,27 @@ def dielectric_prompts(count: int, size: int, seed: int) -> list[tuple[str, Mesh
     return picked
 
 
-def real_prompts(cfg: GeneratorTrainConfig) -> list[tuple[str, MeshInput, list[dict]]]:
-    """The held-out sample assets that are not all metal, each with, per prompt type, every material
-    uplifted with its own draws, batch's caption for that uplift and its latents."""
+def real_prompts(objects: list[RealHeldOut], size: int) -> list[tuple[str, MeshInput, list[dict]]]:
+    """The held-out sample assets (``real_held_out``) that are not all metal, each with, per prompt
+    type, every material uplifted with its own draws, batch's caption for that uplift and its
+    latents at ``size``."""
     picked = []
-    for obj in real_held_out(cfg):
+    for obj in objects:
         if obj.inp.metallic:
             continue
         rows = []
         for type_ in PROMPT_TYPES:
-            latents, prompt = obj.uplifted(type_, cfg.corpus.texture_size)
+            latents, prompt = obj.uplifted(type_, size)
             rows.append({"type": type_, "prompt": prompt, "reference": latents})
         picked.append((obj.asset_id, obj.inp, rows))
     return picked
 
 
-def pair_flip(a: np.ndarray, b: np.ndarray) -> float:
-    """Mean FLIP between two stacks of display-referred views."""
-    return float(np.mean([mean_flip(x, y) for x, y in zip(a, b)]))
-
-
 def prompt_pairs(references: list[np.ndarray], generated: list[np.ndarray]) -> dict[str, dict[str, float]]:
     """One object's FLIP between the renders of every pair of prompts (``PROMPT_TYPES`` order),
     for the references and for the generations."""
-    return {f"{a}-{b}": {"references": pair_flip(references[i], references[j]),
-                         "generated": pair_flip(generated[i], generated[j])}
+    return {f"{a}-{b}": {"references": views_flip(references[i], references[j]),
+                         "generated": views_flip(generated[i], generated[j])}
             for (i, a), (j, b) in itertools.combinations(enumerate(PROMPT_TYPES), 2)}
 
 
@@ -111,7 +105,7 @@ def measure(args: argparse.Namespace) -> tuple[dict, list]:
     model, cfg = gen.load_generator(args.checkpoint)
     size = cfg.corpus.texture_size
     objects, cells = [], []
-    picked = real_prompts(cfg) if args.real else dielectric_prompts(args.objects, size, cfg.corpus.seed)
+    picked = real_prompts(real_held_out(cfg), size) if args.real else dielectric_prompts(args.objects, size, cfg.corpus.seed)
     for asset_id, inp, prompts in picked:
         renders, row_cells = [], []
         for p in prompts:
