@@ -25,11 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
+from batch import options
 from batch.options import DEFAULT_DENOISE_PREFILTER, DENOISE_PREFILTERS
 from bench.common import add_out_argument, pyplot, save_chart, write_report
 from bench.render_speed import beauty_frames, mean_flip, parse, prepare, render_ours
 
-SAMPLES, THRESHOLD = 16, 0.01  # the farm's defaults (batch/options.py)
+_FARM = options.build_parser()
+SAMPLES, THRESHOLD = _FARM.get_default("samples"), _FARM.get_default("adaptive_threshold")  # the farm's defaults
 
 
 def main(argv: list[str]) -> int:

@@ -41,8 +41,10 @@ from typing import Any
 import numpy as np
 import torch
 
+from batch import options
 from batch.options import DEFAULT_CLUSTER_STEP
-from bench.common import FLIP_CONVENTION, REPO, add_out_argument, child_env, provenance, pyplot, save_chart, write_report
+from bench.common import (FLIP_CONVENTION, REPO, add_out_argument, child_env, provenance, pyplot, save_chart,
+                          write_report)
 from bench.dedupe import CROP, crop_rows, flat_patch, texel_colours
 from richmat_addon.core.stage_clock import StageClock
 from richmat_addon.core.texel_vectors import QUANT, read_vectors, texel_matrix
@@ -57,7 +59,7 @@ MODELS = REPO.parent / "shared" / "assets" / "models"
 ASSETS = ("WaterBottle", "CesiumMilkTruck", "FlightHelmet")
 STAGES = ("import", "enhance", "bake", "fit", "beauty", "intrinsics", "encode")
 MAX_TEXTURE = 8192  # above every sample texture (2048 at most): nothing downscaled
-FIT_STEPS = 300  # the farm's --fit-steps default
+FIT_STEPS = options.build_parser().get_default("fit_steps")  # the farm's own default
 SIDES = {"before": ["--denoise-prefilter", "accurate"], "after": []}  # farm arguments besides the defaults
 PAPER = {"assets": 10_640, "gpus": 80, "hours": 22.0}  # the paper's dataset and what rendering it took
 NODE_CORES = 16
