@@ -111,14 +111,9 @@ def _run(task: tuple) -> list[dict]:
     return prompts_task(task) if task[0] == "prompts" else accuracy_task(task)
 
 
-def choose_table(rows: list[dict]) -> dict[int, float]:
+def choose_table(rows: list[dict], guidances: list[float]) -> dict[int, float]:
     """Per enhancement type, the guidance with the best mean PSNR on its procedural objects."""
-    table = {}
-    for type_ in sorted({r["type"] for r in rows}):
-        mine = [r for r in rows if r["type"] == type_]
-        means = {g: np.mean([r["psnr"] for r in mine if r["guidance"] == g]) for g in {r["guidance"] for r in mine}}
-        table[type_] = float(max(means, key=means.get))
-    return table
+    return {t: guidances[int(np.argmax(psnrs))] for t, psnrs in per_type_psnr(rows, guidances).items()}
 
 
 def at_table(rows: list[dict], table: dict[int, float]) -> list[dict]:
@@ -207,7 +202,7 @@ def main() -> int:
         rows = [r for chunk in pool.imap_unordered(_run, [
             ("procedural", i, guidances, seeds, args.eval_views, 64, 16) for i in range(len(_WORKER["procedural"]))])
             for r in chunk]
-        table = choose_table(rows)
+        table = choose_table(rows, guidances)
         rows += [r for chunk in pool.imap_unordered(_run, [
             ("real", i, guidances, seeds, args.eval_views, 96, 16) for i in range(len(_WORKER["real"]))]
             + [("prompts", i, guidances, seeds, 8, 64, 16, table) for i in range(len(_WORKER["prompts"]))])
