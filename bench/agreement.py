@@ -39,11 +39,15 @@ SETTINGS = {"quick": (1, 1, 96, 256, 256, 0.05), "full": (2, 1, 128, 1024, 256, 
 
 
 def render_cycles(all_cases: list[Case], probe: Path, resolution: int, samples: int, seed: int,
-                  folder: Path) -> dict[str, float]:
+                  folder: Path, osl: dict[str, str] | None = None, threads: int = 0) -> dict[str, float]:
+    """Render the cases into ``folder`` (bench/agreement_cycles.py); the render seconds per case.
+
+    ``osl`` (case name -> OSL file) renders those cases with an outside shader; ``threads`` 0 uses all cores.
+    """
     job = folder / "job.json"
     job.write_text(json.dumps({"cases": [asdict(c) for c in all_cases], "probe": str(probe),
                                "resolution": resolution, "samples": samples, "seed": seed,
-                               "out": str(folder)}))
+                               "out": str(folder), "osl": osl or {}, "threads": threads}))
     run_python(["-m", "bench.agreement_cycles", str(job)], folder)
     return json.loads((folder / "cycles_times.json").read_text())
 

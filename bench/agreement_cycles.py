@@ -1,8 +1,10 @@
-"""Blender side of bench/agreement.py: render every case with Cycles (OSL).
+"""Blender side of bench/agreement.py and bench/mtlx_osl_agreement.py: render every case with Cycles (OSL).
 
-Run by bench/agreement.py in a child process with the pip bpy module:
+Run in a child process with the pip bpy module:
     python -m bench.agreement_cycles JOB.json
-JOB.json holds {"cases": [...], "probe", "resolution", "samples", "seed", "out"};
+JOB.json holds {"cases": [...], "probe", "resolution", "samples", "seed", "out"} and,
+optionally, "osl" ({case name: OSL file}: that case's surface is the file's shader,
+compiled in a Script node, instead of the add-on's) and "threads" (0: all cores);
 writes OUT/<case>.exr and OUT/cycles_times.json (render seconds per case).
 """
 from __future__ import annotations
@@ -19,6 +21,21 @@ from richmat_addon.blender import cycles_builder, preview_scene
 from richmat_addon.core.preview import PreviewScene
 
 
+def script_material(name: str, source: str) -> bpy.types.Material:
+    """A material whose surface is one Script node compiled from the OSL ``source``, output ``out``."""
+    material = bpy.data.materials.new(name)
+    tree = material.node_tree
+    tree.nodes.clear()
+    text = bpy.data.texts.new(f"{name}.osl")
+    text.from_string(source)
+    script = tree.nodes.new("ShaderNodeScript")
+    script.mode, script.script = "INTERNAL", text
+    cycles_builder.compile_script_node(script)
+    output = tree.nodes.new("ShaderNodeOutputMaterial")
+    tree.links.new(script.outputs["out"], output.inputs["Surface"])
+    return material
+
+
 def main(job_path: Path) -> None:
     job = json.loads(job_path.read_text())
     out = Path(job["out"])
@@ -28,9 +45,14 @@ def main(job_path: Path) -> None:
         bpy.ops.wm.read_factory_settings(use_empty=True)
         scene = bpy.context.scene
         cycles_builder.enable_osl(scene)
-        material = cycles_builder.build_material(case.material(), {}, case.name, node=case.graph_node())
+        if case.name in job.get("osl", {}):
+            material = script_material(case.name, Path(job["osl"][case.name]).read_text())
+        else:
+            material = cycles_builder.build_material(case.material(), {}, case.name, node=case.graph_node())
         preview_scene.setup(scene, PreviewScene(resolution=job["resolution"]), Path(job["probe"]),
                             material, job["samples"], job["seed"])
+        if job.get("threads"):
+            scene.render.threads_mode, scene.render.threads = "FIXED", job["threads"]
         start = time.perf_counter()
         preview_scene.render_exr(scene, out / f"{case.name}.exr")
         times[case.name] = time.perf_counter() - start
