@@ -18,11 +18,13 @@ import bpy
 
 from bench.agreement_cases import Case
 from richmat_addon.blender import cycles_builder, preview_scene
+from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
 from richmat_addon.core.preview import PreviewScene
 
 
 def script_material(name: str, source: str) -> bpy.types.Material:
     """A material whose surface is one Script node compiled from the OSL ``source``, output ``out``."""
+    prefer_blender_bundled_modules()  # assigning the script runs Cycles' update, which imports oslquery
     material = bpy.data.materials.new(name)
     tree = material.node_tree
     tree.nodes.clear()

@@ -76,3 +76,17 @@ def inline_includes(source: str, folder: Path | None = None) -> str:
 def cycles_source(doc: mx.Document, name: str = SHADER_NAME) -> str:
     """The OSL text a Cycles Script node compiles for ``doc``: genosl's output, includes inlined."""
     return inline_includes(generate(doc, name))
+
+
+def with_distribution(source: str, distribution: str) -> str:
+    """``source`` with every ``*_distribution`` shader parameter defaulting to ``distribution``.
+
+    genosl hands the MaterialX ``distribution`` input (``"ggx"``, the only value
+    its enum has) to the closures as a shader parameter. Cycles' ``"ggx"`` is
+    single scattering: rough lobes lose energy, and its layer albedo of a
+    dielectric top is inflated. MaterialX's own GLSL renders GGX with energy
+    compensation; in Cycles that is ``"multi_ggx"``. Setting the parameter is what
+    an artist would do on the Script node's ``*_distribution`` inputs; the shader
+    code is unchanged.
+    """
+    return re.sub(r'(\bstring[ \t]+\w+_distribution[ \t]*=[ \t]*)"[^"]*"', rf'\1"{distribution}"', source)
