@@ -16,7 +16,9 @@ bench/mtlx_osl.with_distribution).
 The reference renders at ``--seed``; the MaterialX shaders render at the next
 seed, and so does the add-on's shader a second time: that pair's FLIP is the
 noise floor, the difference two seeds of one shader make, so a FLIP near it means
-the two shaders agree to within the noise.
+the two shaders agree to within the noise. The MaterialX renders are also compared
+with that second add-on render, same seed: there the noise cancels where the two
+shaders sample the same closures.
 
     python -m bench.mtlx_osl_agreement [--per-type N] [--seed N] [--renders DIR] [--out FILE.json]
 
@@ -94,6 +96,8 @@ def summary(rows: list[dict]) -> dict:
                    "mean_flip_multi_ggx": mean("flip_multi_ggx", members),
                    "worst_flip_multi_ggx": max(r["flip_multi_ggx"] for r in members),
                    "mean_noise_floor": mean("noise_floor", members),
+                   "worst_flip_same_seed": max(r["flip_same_seed"] for r in members),
+                   "worst_flip_multi_ggx_same_seed": max(r["flip_multi_ggx_same_seed"] for r in members),
                    **{f"{which}_render_s": statistics.median(r["seconds"][which] for r in members)
                       for which in ("addon", "mtlx", "mtlx_multi_ggx")}}
             for name, members in groups.items()}
@@ -168,6 +172,8 @@ def main() -> None:
             floor_error, floor_flip = flip_map(ref, floor)
             rows.append({"name": case.name, "group": group_of(case), "flip": flip,
                          "flip_multi_ggx": compensated_flip, "noise_floor": floor_flip,
+                         "flip_same_seed": flip_map(floor, ours)[1],
+                         "flip_multi_ggx_same_seed": flip_map(floor, compensated)[1],
                          "seconds": {which: seconds[which][case.name] for which in RENDERS},
                          "params": case.params, "base_color": case.base_color})
             images.append((f"{case.name}\nFLIP {flip:.4f}\n{COMPENSATED} {compensated_flip:.4f}\nfloor {floor_flip:.4f}",
