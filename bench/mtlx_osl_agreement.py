@@ -27,6 +27,7 @@ Target (issue 38): mean FLIP <= 0.03 over the cases.
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
 import sys
 import tempfile
@@ -98,7 +99,7 @@ def summary(rows: list[dict]) -> dict:
                    "mean_noise_floor": mean("noise_floor", members),
                    "worst_flip_same_seed": max(r["flip_same_seed"] for r in members),
                    "worst_flip_multi_ggx_same_seed": max(r["flip_multi_ggx_same_seed"] for r in members),
-                   **{f"{which}_render_s": statistics.median(r["seconds"][which] for r in members)
+                   **{f"{which}_render_cpu_s": statistics.median(r["seconds"][which]["cpu"] for r in members)
                       for which in ("addon", "mtlx", "mtlx_multi_ggx")}}
             for name, members in groups.items()}
 
@@ -124,9 +125,9 @@ def chart(report: dict, path: Path) -> None:
     for k, (which, colour, label) in enumerate((("addon", "tab:red", "add-on OSL"),
                                                 ("mtlx", "tab:blue", "genosl as generated"),
                                                 ("mtlx_multi_ggx", "tab:green", f"genosl, {COMPENSATED}"))):
-        b.bar(x + (k - 1) * 0.27, [r["seconds"][which] for r in rows], 0.27, color=colour, label=label)
+        b.bar(x + (k - 1) * 0.27, [r["seconds"][which]["cpu"] for r in rows], 0.27, color=colour, label=label)
     b.set_xticks(x, [r["name"] for r in rows], rotation=60, ha="right", fontsize=8)
-    b.set_ylabel("render seconds (one thread, shared machine)")
+    b.set_ylabel("render CPU seconds (one thread)")
     b.set_title(f"{report['resolution']} px, {report['samples']} samples, Cycles CPU OSL")
     b.legend(fontsize=8)
     save_chart(fig, path)
@@ -162,8 +163,10 @@ def main() -> None:
             reused = reused_cycles(folder / which, all_cases, args.probe, args.resolution, args.samples, seed)
             print(f"Cycles ({which}, seed {seed}): {len(all_cases)} cases at {args.resolution} px, "
                   f"{args.samples} spp{', reused' if reused else ' ...'}", flush=True)
-            seconds[which] = reused or render_cycles(all_cases, args.probe, args.resolution, args.samples, seed,
-                                                     folder / which, osl, threads=1)
+            wall = reused or render_cycles(all_cases, args.probe, args.resolution, args.samples, seed,
+                                           folder / which, osl, threads=1)
+            cpu = json.loads((folder / which / "cycles_cpu_times.json").read_text())
+            seconds[which] = {name: {"wall": wall[name], "cpu": cpu[name]} for name in wall}
         for case in all_cases:
             ref, floor, ours, compensated = (agx(read_exr(folder / which / f"{case.name}.exr")[..., :3])
                                              for which in RENDERS)
