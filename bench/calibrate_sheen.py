@@ -8,7 +8,7 @@ alone (one per roughness node) under zero-angle suns (bench/sheen_cycles.py),
 each pixel giving f(wi, wo) cos(theta_o) exactly, and we fit the 32 x 32 x 3
 table (initialised from the fits) to those values in log space with Adam.
 
-    python -m bench.calibrate_sheen [--out torch_models/brdf/data/sheen_ltc.npy]
+    python -m bench.calibrate_sheen [--out richmat_addon/core/data/sheen_ltc.npy]
 
 Writes the table and docs/reports/sheen_calibration.json (the fit's residual before and
 after, per roughness). Takes ~5 minutes on 2 cores.
@@ -27,6 +27,7 @@ import torch
 from bench.common import REPO, REPORTS, run_python, write_report
 from torch_models.brdf import lobes, tables
 from torch_models.brdf.frame import tangent_frame, to_local
+from richmat_addon.core.sheen_table import SHEEN_TABLE_FILE
 
 SUNS = 24
 PX_PER_UNIT = 24
@@ -132,7 +133,7 @@ def fit(start: torch.Tensor, loss_of) -> torch.Tensor:  # type: ignore[no-untype
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=REPO / "torch_models" / "brdf" / "data" / "sheen_ltc.npy")
+    parser.add_argument("--out", type=Path, default=SHEEN_TABLE_FILE)
     parser.add_argument("--report", type=Path, default=REPORTS / "sheen_calibration.json")
     parser.add_argument("--measurements", type=Path, default=None,
                         help="keep the Cycles measurement in this folder, or reuse the one already there")

@@ -3,8 +3,9 @@
 The material is built like the enhanced one (a copy of the original keeping its
 normal and UV chains) around a Script node whose OSL source
 ``core.neural_osl`` generates from the decoder weights the latents were fitted
-against. Its neural lobe is lit by the scene's world (an Environment Texture,
-or the Background colour); the diffuse base ``T c`` by everything (docs/addon.md).
+against. The shipped hybrid decoder's lobes are Cycles closures, lit like any
+material (lamps, shadows, the world); the MLP baseline's lobe is an emission lit
+by the scene's world alone (an Environment Texture, or the Background colour).
 OSL runs in Cycles on the CPU and OptiX only: the material also holds the baked
 enhanced material's native graph, which EEVEE renders, and which Cycles renders
 where it cannot run OSL (the add-on's handler switches it, as for enhanced ones).
@@ -29,7 +30,7 @@ from .pbr_source import InputProblem
 
 SCRIPT_NODE = cycles_builder.NEURAL_SCRIPT_NODE
 SUFFIX = " (richmat neural)"
-SAMPLES = 8  # directions per shading point for the neural lobe's world lighting
+SAMPLES = 8  # the MLP baseline: directions per shading point for its lobe's world lighting
 
 
 def _shader_text(weights: Path, digest: str) -> bpy.types.Text:
@@ -110,11 +111,12 @@ def add_neural_nodes(material: bpy.types.Material, text: bpy.types.Text, baked: 
         tree.links.new(energy.outputs["Color"], script.inputs["energy_scale"])
     else:
         script.inputs["energy_scale"].default_value = float(scale)
-    probe, rotation, color = world_lighting(scene)
-    script.inputs["probe"].default_value = probe
-    script.inputs["probe_rotation"].default_value = rotation
-    script.inputs["world_color"].default_value = (*color, 1.0)
-    script.inputs["samples"].default_value = SAMPLES
+    if "probe" in script.inputs:  # the MLP baseline's shader integrates its lobe from the world itself
+        probe, rotation, color = world_lighting(scene)
+        script.inputs["probe"].default_value = probe
+        script.inputs["probe_rotation"].default_value = rotation
+        script.inputs["world_color"].default_value = (*color, 1.0)
+        script.inputs["samples"].default_value = SAMPLES
     return [script, *fallback]
 
 
