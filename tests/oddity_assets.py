@@ -113,6 +113,17 @@ def write_uv_sets(folder: Path) -> Path:
     return _write_glb(folder / "uv_sets.glb", doc, b)
 
 
+def write_alpha_blend(folder: Path) -> Path:
+    """Two cubes: a pane with alpha blending (alphaMode BLEND, base colour alpha 0.4), an opaque frame."""
+    b = _Builder()
+    materials = [{"name": "pane", "alphaMode": "BLEND",
+                  "pbrMetallicRoughness": {"baseColorFactor": [0.2, 0.5, 0.9, 0.4]}},
+                 {"name": "frame", "pbrMetallicRoughness": {"baseColorFactor": [0.3, 0.3, 0.3, 1.0]}}]
+    meshes = [{"primitives": [_cube_primitive(b, material=0)]}, {"primitives": [_cube_primitive(b, material=1)]}]
+    nodes = [{"mesh": 0}, {"mesh": 1, "translation": [2, 0, 0]}]
+    return _write_glb(folder / "alpha_blend.glb", _document(b, meshes, nodes, materials), b)
+
+
 def _column() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A 0.8-wide column from y = 0 to 2 in two segments: positions, joint of each vertex, triangles."""
     ring = np.float32([[-0.4, 0, -0.4], [0.4, 0, -0.4], [0.4, 0, 0.4], [-0.4, 0, 0.4]])

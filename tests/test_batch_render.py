@@ -159,3 +159,21 @@ def check_intrinsics(path: Path) -> None:
     for name in ("latent_a", "latent_b"):
         assert np.abs(layers[name][covered][:, :3]).max() > 0 and np.abs(layers[name][~covered]).max() == 0
     return layers
+
+
+def test_a_missing_gpu_fails_the_run_at_once_with_the_reason_in_the_ledger(tmp_path: Path) -> None:
+    # a GPU this machine does not have: CUDA on a machine without NVIDIA's driver, else AMD's HIP
+    device = "HIP" if Path("/dev/nvidiactl").exists() else "CUDA"
+    inputs, out = tmp_path / "in", tmp_path / "out"
+    inputs.mkdir()
+    (inputs / "cube.stl").write_text(TETRA_STL)
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "blender_user"), PYTHONPATH=str(REPO))
+    proc = subprocess.run([sys.executable, str(REPO / "batch" / "render_dataset.py"), "--input", str(inputs),
+                           "--output", str(out), "--device", device, "--decoder", str(decoder_folder())],
+                          env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 1, proc.stderr[-3000:]
+    (record,) = [r for path in (out / "_ledger").glob("*.jsonl") for r in ledger.read(path)]
+    assert record["status"] == "aborted" and record["asset_id"] is None
+    assert record["reason"].startswith(f"--device {device}: Cycles finds no {device} device on this machine")
+    assert record["reason"].endswith("not rendering on the CPU instead")
+    assert sorted(p.name for p in out.iterdir()) == ["_ledger"]  # no asset was started
