@@ -10,7 +10,7 @@ the user is told and can triangulate first.
 
 xatlas is a pip package, not part of Blender: where it is missing (a stock
 Blender) the map comes from Blender's own Smart UV Project, which cuts along
-faces and so stretches none, and the report says xatlas packs tighter.
+faces and so stretches none; the report says which made the map.
 """
 from __future__ import annotations
 
@@ -105,7 +105,7 @@ def _smart_project(obj: bpy.types.Object) -> Unwrapped:
         mesh.update()
         if mode != "OBJECT":
             bpy.ops.object.mode_set(mode=mode)
-    return Unwrapped(len(mesh.polygons), 0, "Smart UV Project; xatlas in Blender's Python would pack charts tighter")
+    return Unwrapped(len(mesh.polygons), 0, "Smart UV Project: xatlas is not installed in Blender's Python")
 
 
 def _flags(items: bpy.types.bpy_prop_collection, attr: str) -> np.ndarray:
