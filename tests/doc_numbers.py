@@ -6,9 +6,10 @@ comes from and the key path inside it, and a scale from the report's units to th
 ones. The rounding is the quote's own: the value, scaled, printed with as many decimals as
 the quote shows must equal it (thousands may be grouped by a space or a comma).
 
-A key path names keys and list positions separated by "/", "*" for every item at that
-level; "min:", "max:", "mean:" or "len:" before it reduce what it finds, and "sqrt:" takes
-the square root of a single value (a texture side from its texel count).
+A key path names keys and list positions (negative from the end) separated by "/", "*" for
+every item at that level. Before it, "min:", "max:" or "mean:" reduce what the "*" found,
+"len:" counts the items of the list or mapping it names, and "sqrt:" takes a square root
+(a texture's side from its texel count).
 
 Numbers measured once by hand have no report: their row has ``report=None``, their quote
 must say "by hand", and only its presence in the document is checked.
