@@ -14,14 +14,9 @@ from pathlib import Path
 
 import pytest
 
+from tools.blender_ext import cli_path
+
 REPO = Path(__file__).resolve().parents[1]
-
-
-def blender_ext() -> Path:
-    """Blender's extension CLI, shipped inside the bpy wheel."""
-    import importlib.util
-
-    return Path(importlib.util.find_spec("bpy").origin).parent / "5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py"
 
 
 def build_extension() -> Path:
@@ -146,7 +141,7 @@ def render(size=32, samples=8):
 
 
 def test_manifest_validates_and_zip_holds_the_addon(extension_zip: Path):
-    out = subprocess.run([sys.executable, str(blender_ext()), "validate", str(extension_zip)],
+    out = subprocess.run([sys.executable, str(cli_path()), "validate", str(extension_zip)],
                          capture_output=True, text=True)
     assert out.returncode == 0, out.stdout + out.stderr
     names = zipfile.ZipFile(extension_zip).namelist()

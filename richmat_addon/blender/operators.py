@@ -416,7 +416,11 @@ class RICHMAT_OT_unwrap_uvs(bpy.types.Operator):
     def execute(self, context: bpy.types.Context) -> set[str]:
         from .unwrap import unwrap
 
-        result = unwrap(context.active_object)
+        try:
+            result = unwrap(context.active_object)
+        except InputProblem as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
         self.report({"WARNING"} if result.stretched else {"INFO"}, result.message(context.active_object.name))
         return {"FINISHED"}
 

@@ -73,7 +73,7 @@ def plan(obj: bpy.types.Object, all_slots: bool) -> list[SlotPlan]:
         sources = read_sources(original)
         if sources.textured and not mesh_maps.has_uvs(obj):
             raise InputProblem(f"{obj.name!r} has textures but no UV map; unwrap it first "
-                               "(Richmat > Unwrap UVs, with xatlas)")
+                               "(Richmat > Unwrap UVs)")
         plans.append(SlotPlan(obj, index, original, sources))
     return plans
 
