@@ -45,7 +45,7 @@ from bench.common import REPORTS, pyplot, save_chart, write_report
 from bench.held_out_assets import RealHeldOut, real_held_out
 from richmat_addon.core.enhance import baseline, enhance, is_metallic
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
-from torch_models.generator import (DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, GUIDANCE_BY_TYPE, corpus, procedural,
+from torch_models.generator import (DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, guidance_by_type, corpus, procedural,
                                     text)
 from torch_models.generator import generate as gen
 from torch_models.generator.dit import LatentGenerator
@@ -244,7 +244,7 @@ def main() -> int:
     best_baseline = max(overall[k]["psnr"] for k in METHODS[1:])
     report = {"kind": kind, "seed": args.seed, "checkpoint": str(args.checkpoint), "views": args.views,
               "eval_views": args.eval_views, "steps": args.steps, "samples": args.samples,
-              "guidance": GUIDANCE_BY_TYPE if args.guidance is None else args.guidance,
+              "guidance": guidance_by_type() if args.guidance is None else args.guidance,
               "resolution": args.resolution, "spp": args.spp, "overall": overall,
               "invalid_generated_texels": invalid,
               "energy_gaining_before_guard": float(np.mean([r["energy_gaining_before_guard"] for r in rows])),

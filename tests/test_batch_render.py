@@ -23,6 +23,7 @@ from PIL import Image
 from batch import ledger
 from batch.options import DEFAULT_DECODER
 from richmat_addon.core import dataset_index, neural_folder
+from richmat_addon.core.enhancement_types import TYPES
 from torch_models.dataset import BatchDataset
 
 REPO = Path(__file__).resolve().parents[1]
@@ -118,7 +119,7 @@ def test_tiny_batch_renders_good_assets_and_reports_bad_ones(tmp_path: Path) -> 
         for name in ("rgb/0000.png", "rgb/0001.png", "passes/0000.exr", "passes/0001.exr", "orbit.mp4",
                      "cameras.json", "caption.txt"):
             assert name in manifest["files"], (source, name)
-        assert manifest["enhancement_type"] in range(6) and manifest["caption"].startswith("a ")
+        assert manifest["enhancement_type"] in range(len(TYPES)) and manifest["caption"].startswith("a ")
         assert all(m["furnace"]["checked"] > 0 for m in manifest["fit"]["materials"].values())
         if source == "trap.blend":
             assert manifest["autoexec_fail"] is True

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
@@ -20,7 +20,7 @@ from richmat_addon.core.prompt import prompt_type
 from richmat_addon.core.uv_raster import UvRaster, rasterize as uv_rasterize
 from . import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, guidance_for, text
 from .coverage import TextureSpace, choose_cameras
-from .dit import Conditions, LatentGenerator
+from .dit import TYPE_EMBEDDING, Conditions, LatentGenerator
 from .mesh_input import MeshInput
 from .prior import prior_latents
 from .projection import Projection, project, rim_trust
@@ -44,8 +44,11 @@ def load_generator(folder: Path = SHIPPED) -> tuple[LatentGenerator, GeneratorTr
         raise FileNotFoundError(f"{folder}: no trained generator here (weights.safetensors, state.json); "
                                 "run `python -m torch_models train-generator` first")
     cfg = GeneratorTrainConfig.from_dict(json.loads(state.read_text())["config"])
+    tensors = load_file(str(weights))
+    # the type count is the checkpoint's, not today's table's (state.json files before DitConfig.types lack it)
+    cfg = replace(cfg, model=replace(cfg.model, types=tensors[TYPE_EMBEDDING].shape[0] - 1))
     model = LatentGenerator(cfg.model)
-    model.load_state_dict(load_file(str(weights)))
+    model.load_state_dict(tensors)
     return model.eval().requires_grad_(False), cfg
 
 
