@@ -2,7 +2,7 @@
 
 Two sets, never trained on: procedural objects whose ids hash into the held-out split,
 and (``--real``) the real sample assets the corpus configuration holds out
-(``bench/held_out_assets.py``), read as ``generate`` reads a user's file, every part
+(``support/held_out_assets.py``), read as ``generate`` reads a user's file, every part
 with its UVs and maps. Each object's caption is its prompt. The object is rendered from
 16 orbit views with the generated latents and with the reference latents, same base
 colour, G-buffer shading under the default probe, AgX. The reference of a procedural
@@ -42,7 +42,7 @@ import numpy as np
 import torch
 
 from bench.common import REPORTS, pyplot, save_chart, write_report
-from bench.held_out_assets import RealHeldOut, real_held_out
+from support.held_out_assets import RealHeldOut, real_held_out
 from richmat_addon.core.enhance import baseline, enhance, is_metallic
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
 from torch_models.generator import (DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, guidance_by_type, corpus, procedural,

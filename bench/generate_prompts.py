@@ -1,7 +1,7 @@
 """Does the generator follow the prompt visibly? Prompt sensitivity and a gallery (issue 30, item 4).
 
 On held-out procedural dielectrics (as bench/generate_eval.py picks them), or with
-``--real`` on the real sample assets the corpus holds out (bench/held_out_assets.py,
+``--real`` on the real sample assets the corpus holds out (support/held_out_assets.py,
 each read as ``generate`` reads it), metals left out since fuzz and scattering fall back
 to dust on a metal: every material is enhanced with each of Types 0, 1, 2 and 4 (its
 own draws), captioned as the corpus captions it, and the object generated from that
@@ -30,7 +30,7 @@ import torch
 
 from bench.common import REPORTS, provenance, pyplot, save_chart, write_report
 from bench.generate_eval import held_out_indices, latents_of, psnr, render, views_flip
-from bench.held_out_assets import RealHeldOut, real_held_out
+from support.held_out_assets import RealHeldOut, real_held_out
 from richmat_addon.core.enhance import enhance, is_metallic
 from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.maps import ParamMap

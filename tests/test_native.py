@@ -16,7 +16,8 @@ from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
 from torch_models.brdf import lobes
 
-from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
+from support.extension import script
+from .test_addon_extension import extension_zip  # noqa: F401  (session fixture)
 from .test_osl import BLENDER_PRELUDE, save_materials
 
 REPO = Path(__file__).resolve().parents[1]
