@@ -15,6 +15,7 @@ from collections.abc import Callable
 import numpy as np
 
 from . import masks
+from .colour import LUMINANCE
 from .enhancement_types import (BASE_FAMILY, DIELECTRIC_ONLY, FAMILIES, METAL_REMAP, METAL_TYPES, TYPE_MIX,
                                 TYPES, index_ranges)
 from .maps import EnhancedMaterial, ParamMap, PbrInputs
@@ -135,7 +136,7 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
     metal = _clean(pbr.metalness, 0.0, 1.0, "metalness", pbr.name)
 
     s = {"type": resolved, "type_note": note, "seed": seed, **_draw(rng, BASE_FAMILY)}
-    lum = base @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    lum = base @ np.array(LUMINANCE, np.float32)
     values: dict[str, np.ndarray | float] = {
         "spec_color": base, "edge_tint": s["edge_tint"], "metalness": metal,
         "alpha_core": rough ** s["p"], "alpha_haze": np.minimum(1.0, s["s"] * rough ** s["q"]),
