@@ -40,8 +40,9 @@ from pathlib import Path
 import numpy as np
 
 from bench.common import REPORTS, add_out_argument, pyplot, save_chart, write_report
-from tests.conftest import SHARED_ASSETS, run_blender
-from tests.test_addon_extension import build_extension, script
+from support.blender_child import run_blender
+from support.extension import build_extension, script
+from support.paths import SHARED_ASSETS
 from torch_models.neural import weights
 from torch_models.neural.evaluate import DEFAULT_PROBE
 from torch_models.render.flip import flip_map

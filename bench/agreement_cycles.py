@@ -14,7 +14,7 @@ from pathlib import Path
 
 import bpy
 
-from bench.agreement_cases import Case
+from support.agreement_cases import Case
 from richmat_addon.blender import cycles_builder, preview_scene
 from richmat_addon.core.preview import PreviewScene
 

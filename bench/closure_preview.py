@@ -1,6 +1,6 @@
 """The neural preview as Cycles closures against the emission preview it replaced, in two scenes.
 
-For the agreement cases (bench/agreement_cases.py, seed 0: per type a dielectric and,
+For the agreement cases (support/agreement_cases.py, seed 0: per type a dielectric and,
 where the type allows, a metal; the shipped encoder's latent of each), renders the
 preview ball
 
@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from bench.agreement_cases import cases
+from support.agreement_cases import cases
 from bench.common import (FLIP_CONVENTION, REPO, add_out_argument, pyplot, run_python, save_chart,
                           write_report)
 from richmat_addon.core.neural_osl import neural_osl_source

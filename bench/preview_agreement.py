@@ -1,6 +1,6 @@
 """The add-on's neural preview (OSL in Cycles) against the torch renderer, per type.
 
-For one material per type (bench/agreement_cases.py, latent from each decoder's
+For one material per type (support/agreement_cases.py, latent from each decoder's
 encoder), renders the preview ball with the torch renderer (``NeuralBsdf``, probe
 MIS) and with Cycles running the shader of ``richmat_addon/core/neural_osl.py``,
 same probe, scene and networks; reports mean LDR-FLIP (AgX, sRGB, 67 ppd) per
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from bench.agreement_cases import cases
+from support.agreement_cases import cases
 from bench.common import (FLIP_CONVENTION, add_out_argument, add_weights_argument, contact_sheet, run_python,
                           weights_folders, write_report)
 from richmat_addon.core.schema import CHANNEL_SLICES

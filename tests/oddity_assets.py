@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from richmat_addon.core.gltf_materials import glb_bytes
-from tests.conftest import run_blender
+from support.blender_child import run_blender
 from tests.test_gltf_io import _Builder, base_color_image, cube_arrays, orm_image, png
 
 # The 12-byte KTX2 identifier and a little body: enough for anything that sniffs the format.

@@ -6,7 +6,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
+from support.extension import script
+from .test_addon_extension import extension_zip  # noqa: F401  (session fixture)
 
 BAD_INPUTS = r'''
 def snapshot():

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from batch.assets import collect
 from richmat_addon.core.captions import article, caption, colour_name, enhancement_keywords, readable
-from richmat_addon.core.enhance import TYPE_MIX
+from richmat_addon.core.enhancement_types import TYPE_MIX
 from richmat_addon.core.enhancement_plan import asset_type, material_type
 
 

@@ -27,7 +27,7 @@ from batch import ledger
 from richmat_addon.core import material_folder
 from richmat_addon.core.colour import srgb_to_linear
 from tests import oddity_assets as odd
-from tests.conftest import run_blender
+from support.blender_child import run_blender
 from tests.test_batch_render import check_intrinsics, decoder_folder
 from tests.test_gltf_io import base_color_image
 

@@ -10,6 +10,7 @@ import pytest
 from PIL import Image
 
 from richmat_addon.core import material_folder
+from richmat_addon.core.enhancement_types import TYPES
 from torch_models import cli_demo
 from torch_models.cli import build_parser, main
 
@@ -61,11 +62,12 @@ def test_demo_writes_labelled_pictures_of_types_fits_and_prompts(tmp_path: Path,
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--size", "8", "--resolution", str(RESOLUTION), "--spp", "2",
                  "--fit-steps", "1", "--refit-steps", "1", "--generate-size", "16", "--view-size", str(VIEW)]) == 0
-    for k in range(6):
-        assert (out / f"type_{k}" / "params.json").is_file() and (out / f"type_{k}" / "material.mtlx").is_file()
-        record = json.loads((out / f"type_{k}" / "neural" / "neural.json").read_text())
-        assert record["fitted_vectors"] >= 1 and (out / f"type_{k}" / "neural" / "latent_0.exr").is_file()
-    assert len({_fingerprint(out / f"type_{k}") for k in range(6)}) == 6, "the six types must differ"
+    folders = [f"type_{t.index}" for t in TYPES]
+    for k in folders:
+        assert (out / k / "params.json").is_file() and (out / k / "material.mtlx").is_file()
+        record = json.loads((out / k / "neural" / "neural.json").read_text())
+        assert record["fitted_vectors"] >= 1 and (out / k / "neural" / "latent_0.exr").is_file()
+    assert len({_fingerprint(out / k) for k in folders}) == len(TYPES), "the types must differ"
 
     side = np.asarray(Image.open(out / "side_by_side.png").convert("RGB"))
     (balls,) = _check_captions(side, RESOLUTION, RESOLUTION, panels=7, rows=1)
@@ -74,7 +76,7 @@ def test_demo_writes_labelled_pictures_of_types_fits_and_prompts(tmp_path: Path,
     _check_captions(np.asarray(Image.open(out / "neural_vs_analytic.png").convert("RGB")), RESOLUTION, RESOLUTION,
                     panels=3, rows=6)
     flips = json.loads((out / "neural_vs_analytic.json").read_text())["flip"]
-    assert set(flips) == {f"type_{k}" for k in range(6)}
+    assert set(flips) == set(folders)
     assert max(flips.values()) < FLIP_TYPE_BOUND and np.mean(list(flips.values())) < FLIP_MEAN_BOUND, flips
 
     generated = json.loads((out / "generated.json").read_text())

@@ -6,9 +6,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.held_out_assets import real_held_out
 from richmat_addon.core import neural_folder
 from richmat_addon.core.folder_io import read_exr
+from support.held_out_assets import real_held_out
 from torch_models.generator.train import GeneratorTrainConfig
 
 DATA = Path(__file__).parent / "data" / "generator_batch"

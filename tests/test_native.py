@@ -12,10 +12,12 @@ from batch import options
 from richmat_addon.core import albedo_fits, graph
 from richmat_addon.core.albedo_fit_data import DIELECTRIC, SHEEN
 from richmat_addon.core.enhance import enhance
+from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
 from torch_models.brdf import lobes
 
-from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
+from support.extension import script
+from .test_addon_extension import extension_zip  # noqa: F401  (session fixture)
 from .test_osl import BLENDER_PRELUDE, save_materials
 
 REPO = Path(__file__).resolve().parents[1]
@@ -151,7 +153,7 @@ def test_each_type_builds_its_groups_and_renders_like_osl(blender_run, tmp_path:
     from torch_models.render.flip import flip_map
     from torch_models.render.tonemap import agx
 
-    materials = {m.name: m for m in [type_material(t) for t in range(6)] + [type_material(2, metal=True)]}
+    materials = {m.name: m for m in [type_material(t.index) for t in TYPES] + [type_material(2, metal=True)]}
     npz = save_materials(tmp_path / "materials.npz", materials)
     result = blender_run(f"from pathlib import Path\nNPZ, NAMES, PROBE = {npz!r}, {list(materials)!r}, "
                          f"Path({str(PROBE)!r})\nSIZE, SAMPLES = 24, 16\n" + PER_TYPE)

@@ -94,7 +94,7 @@ def test_cycles_closures_agree_with_the_torch_closure_form_under_the_probe(
 
 
 SHIPPED = Path(__file__).resolve().parents[1] / "torch_models" / "neural" / "weights"
-# the shipped encoder's latent of a Type 2 metal (bench/agreement_cases.py, seed 0, type2_metal_1) and its base
+# the shipped encoder's latent of a Type 2 metal (support/agreement_cases.py, seed 0, type2_metal_1) and its base
 SUN_LATENT = [0.2547, -0.4069, -0.6685, -0.3168, 0.1747, -0.318]
 SUN_BASE = [0.6001, 0.5731, 0.3761]
 
