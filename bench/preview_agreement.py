@@ -63,8 +63,9 @@ cycles_builder.compile_script_node(node)
 tree.links.new(node.outputs["BSDF"], tree.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
 preview_scene.setup(scene, PreviewScene(resolution=job["resolution"]), Path(job["probe"]), mat, job["spp"])
 scene.cycles.shading_system = True
-node.inputs["probe"].default_value = job["probe"]
-node.inputs["samples"].default_value = job["directions"]
+if "probe" in node.inputs:  # the MLP's shader integrates its lobe from the probe; the hybrid's are closures
+    node.inputs["probe"].default_value = job["probe"]
+    node.inputs["samples"].default_value = job["directions"]
 res = job["resolution"]
 seconds = {}
 for case in job["cases"]:
@@ -142,7 +143,7 @@ def main() -> None:
     parser.add_argument("--resolution", type=int, default=48)
     parser.add_argument("--spp", type=int, default=1024, help="torch renderer samples per pixel")
     parser.add_argument("--cycles-spp", type=int, default=384)
-    parser.add_argument("--directions", type=int, default=8, help="shader directions per shading point")
+    parser.add_argument("--directions", type=int, default=8, help="the MLP shader's directions per shading point")
     add_out_argument(parser, "preview_agreement.json")
     args = parser.parse_args()
     folders = weights_folders(args)
