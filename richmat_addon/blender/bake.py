@@ -91,7 +91,8 @@ def bake(obj: bpy.types.Object, all_slots: bool, root: Path, relink: bool = True
     lines = []
     for p in plans:
         enhanced = p.original.richmat.enhanced
-        mat = uplift.enhance_slot(p, _requested(enhanced), enhanced.richmat.seed, max_size=None)
+        mat = uplift.enhance_slot(p, _requested(enhanced), enhanced.richmat.seed, None, enhanced.richmat.amount,
+                                  enhanced.richmat.auto_touch)
         mat.params.update(edited_constants(enhanced))
         folder = claim_folder(root, p.original)
         files = write_folder(folder, mat, p.original)
@@ -108,5 +109,5 @@ def bake(obj: bpy.types.Object, all_slots: bool, root: Path, relink: bool = True
 
 
 def _requested(enhanced: bpy.types.Material) -> str:
-    """The type uplift resolved: bake repeats it exactly (never re-draws Auto)."""
+    """The type uplift resolved: bake repeats it exactly (never re-draws Auto; its amount and touch too)."""
     return str(enhanced.richmat.type)

@@ -62,7 +62,8 @@ class RICHMAT_OT_uplift_material(bpy.types.Operator):
         s = _settings(context)
         cycles = uplift.cycles_choice(context.scene)
         try:
-            lines = uplift.uplift(context.active_object, s.all_slots, s.enhancement_type, s.seed, cycles)
+            lines = uplift.uplift(context.active_object, s.all_slots, s.enhancement_type, s.seed, cycles,
+                                  amount=s.amount)
         except InputProblem as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

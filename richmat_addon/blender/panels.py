@@ -31,6 +31,7 @@ def draw_richmat(layout: bpy.types.UILayout, context: bpy.types.Context) -> None
     col.prop(s, "enhancement_type")
     if s.enhancement_type != "AUTO":
         col.label(text=TYPES[int(s.enhancement_type)].description)
+    col.prop(s, "amount", slider=True)
     col.prop(s, "seed")
     col.prop(s, "all_slots")
     col.operator("richmat.uplift_material", icon="SHADING_RENDERED")
