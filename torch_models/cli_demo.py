@@ -203,11 +203,12 @@ def _select(bounded, rows):  # type: ignore[no-untyped-def]
 PREVIEW_SPP = 32  # samples per pixel of the prompt views: enough that a coat's highlight or a dust film is not noise
 DEMO_PROMPT_ENDINGS = ("heavy haze, heavy dust", "light haze, glossy clearcoat",
                        "moderate haze, heavy fuzz, light subsurface scattering")
-# The prompts' object: a smooth sphere painted deep red (linear base colour; sRGB 0.60, 0.21, 0.19), semi-gloss.
-# On a coloured, mid-dark, curved base each enhancement shows: dust greys the top, a coat adds sharp
-# reflections, fuzz a pale rim. (A white base hides dust, and a flat one the coat's reflections.)
-DEMO_PAINT = (0.32, 0.036, 0.03)
-DEMO_ROUGHNESS = 0.4
+# The prompts' object: a smooth sphere painted a rough dark red (linear base colour; sRGB 0.38, 0.12, 0.10).
+# On a coloured, dark, rough, curved base each enhancement shows: dust whitens it, a coat adds sharp
+# reflections over a deeper red, fuzz a pale velvet sheen. (A white base hides dust; a glossy one the coat,
+# and a flat one its reflections.)
+DEMO_PAINT = (0.12, 0.014, 0.01)
+DEMO_ROUGHNESS = 0.7
 
 
 def demo_sphere(texture_size: int):  # -> MeshInput
