@@ -15,20 +15,6 @@ bpy.context.view_layer.objects.active = bpy.data.objects["Cube"]
 start = [scene.render.engine, scene.cycles.device, scene.cycles.shading_system, bpy.data.filepath]
 scene.richmat.fit_steps = 5
 
-def press(name, **kw):
-    """Run an operator as a button does; (result, the lines it reported), reports read from stdout."""
-    log = Path(TMP) / (name + ".log")
-    sys.stdout.flush()
-    fd, saved = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC), os.dup(1)
-    os.dup2(fd, 1)
-    try:
-        res, err = run_op(name, **kw)
-    finally:
-        sys.stdout.flush()
-        os.dup2(saved, 1)
-        os.close(fd), os.close(saved)
-    return sorted(res), log.read_text() + (err or "")
-
 pressed = {}
 for name, kw in (("uplift_material", {}), ("switch_material", {}), ("switch_material", {}),
                  ("bake_parameters", {}), ("fit_neural", {}), ("preview_neural", {}), ("unwrap_uvs", {}),

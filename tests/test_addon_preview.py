@@ -133,20 +133,6 @@ def test_diffuse_base_reads_t_as_the_torch_renderer_does(blender_run, tmp_path: 
 
 
 PREVIEW = r'''
-def reported(name):
-    """Run an operator; (result, its reports as Blender prints them in background mode, its error)."""
-    log = Path(TMP) / (name + ".log")
-    sys.stdout.flush()
-    fd, saved = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC), os.dup(1)
-    os.dup2(fd, 1)
-    try:
-        res, err = run_op(name)
-    finally:
-        sys.stdout.flush()
-        os.dup2(saved, 1)
-        os.close(fd), os.close(saved)
-    return sorted(res), log.read_text(), err
-
 def settings():
     return [scene.render.engine, scene.cycles.device, scene.cycles.shading_system]
 
@@ -164,21 +150,21 @@ out = {}
 # A GPU that cannot run OSL: one line saying what to switch, nothing changed.
 cycles_prefs = bpy.context.preferences.addons["cycles"].preferences
 cycles_prefs.compute_device_type, scene.cycles.device = "CUDA", "GPU"
-res, _, err = reported("preview_neural")
-out["cuda"] = dict(result=res, error=err, settings=settings(), material=obj.active_material.name)
+res, lines = press("preview_neural")
+out["cuda"] = dict(result=res, lines=lines, settings=settings(), material=obj.active_material.name)
 cycles_prefs.compute_device_type, scene.cycles.device = "NONE", "CPU"
 # The CPU with OSL off: the preview turns OSL on and says so.
-res, log, err = reported("preview_neural")
+res, lines = press("preview_neural")
 material = obj.active_material
 img = render(32, 4)
-out["cpu"] = dict(result=res, log=log, error=err, settings=settings(), name=material.name,
+out["cpu"] = dict(result=res, lines=lines, settings=settings(), name=material.name,
                   nodes=sorted(n.name for n in material.node_tree.nodes),
                   cycles_reads=material.node_tree.nodes["richmat_output"].inputs["Surface"].links[0].from_node.name,
                   finite=bool(np.isfinite(img).all()), mean=float(img.mean()))
 # EEVEE (Blender's default engine) with OSL off: OSL on for Cycles, and the engine to switch named.
 scene.render.engine, scene.cycles.shading_system = "BLENDER_EEVEE", False
-res, log, err = reported("preview_neural")
-out["eevee"] = dict(result=res, log=log, error=err, settings=settings())
+res, lines = press("preview_neural")
+out["eevee"] = dict(result=res, lines=lines, settings=settings())
 out["baked_name"] = baked_name
 print("RESULT " + json.dumps(out))
 '''
@@ -189,14 +175,14 @@ def test_preview_operator_turns_osl_on_where_it_can_and_names_the_switch_where_i
     result = blender_run(script(f"TMP = {str(tmp_path)!r}\n" + PREVIEW, extension_zip))
     cuda, cpu, eevee = result["cuda"], result["cpu"], result["eevee"]
     assert cuda["result"] == ["CANCELLED"] and cuda["settings"] == ["CYCLES", "GPU", False]
-    assert "CUDA" in cuda["error"] and "Device to CPU" in cuda["error"] and "OptiX" in cuda["error"]
+    assert "CUDA" in cuda["lines"] and "Device to CPU" in cuda["lines"] and "OptiX" in cuda["lines"]
     assert cuda["material"] == result["baked_name"]  # nothing changed
-    assert cpu["result"] == ["FINISHED"], cpu["error"]
+    assert cpu["result"] == ["FINISHED"], cpu["lines"]
     assert cpu["settings"] == ["CYCLES", "CPU", True]  # OSL on; engine and device as they were
-    assert "Turned on Open Shading Language" in cpu["log"] and "Neural preview" in cpu["log"]
+    assert "Turned on Open Shading Language" in cpu["lines"] and "Neural preview" in cpu["lines"]
     assert cpu["name"] == "painted_mat (richmat neural)" and cpu["cycles_reads"] == "richmat_neural_osl"
     assert {"richmat_neural_osl", "tex_latent_0", "tex_latent_1", "normal_map"} <= set(cpu["nodes"])
     assert cpu["finite"] and cpu["mean"] > 0
-    assert eevee["result"] == ["FINISHED"], eevee["error"]
+    assert eevee["result"] == ["FINISHED"], eevee["lines"]
     assert eevee["settings"] == ["BLENDER_EEVEE", "CPU", True]
-    assert "Turned on Open Shading Language" in eevee["log"] and "Render Engine to Cycles" in eevee["log"]
+    assert "Turned on Open Shading Language" in eevee["lines"] and "Render Engine to Cycles" in eevee["lines"]
