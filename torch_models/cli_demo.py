@@ -200,7 +200,7 @@ def _select(bounded, rows):  # type: ignore[no-untyped-def]
                                                check.quadrature[rows], check.tolerance), bounded.refitted[rows])
 
 
-PREVIEW_SPP = 32  # samples per pixel of the prompt views: enough that a coat's highlight or a dust film is not noise
+PREVIEW_SPP = 24  # samples per pixel of the prompt views: a coat's highlight or a dust film is not hidden in noise
 DEMO_PROMPT_ENDINGS = ("heavy haze, heavy dust", "light haze, glossy clearcoat",
                        "moderate haze, heavy fuzz, light subsurface scattering")
 # The prompts' object: a smooth sphere painted a rough dark red (linear base colour; sRGB 0.38, 0.12, 0.10).
