@@ -47,6 +47,21 @@ def run_op(name, **kw):
     except RuntimeError as exc:  # ERROR reports raise in background mode
         return {{"CANCELLED"}}, str(exc)
 
+def press(name, **kw):
+    """Run an operator as a button does: (sorted result, the lines it reported), its reports read from
+    stdout, where Blender prints them in background mode, and its error."""
+    log = Path(bpy.app.tempdir or "/tmp") / f"{{name}}_{{os.getpid()}}.log"
+    sys.stdout.flush()
+    fd, saved = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC), os.dup(1)
+    os.dup2(fd, 1)
+    try:
+        res, err = run_op(name, **kw)
+    finally:
+        sys.stdout.flush()
+        os.dup2(saved, 1)
+        os.close(fd), os.close(saved)
+    return sorted(res), log.read_text() + (err or "")
+
 def write_png(path, rgba):
     h, w, _ = rgba.shape
     img = bpy.data.images.new(Path(path).stem, w, h, alpha=True)

@@ -149,25 +149,56 @@ def test_diffuse_base_reads_t_as_the_torch_renderer_does(blender_run, tmp_path: 
 
 
 PREVIEW = r'''
+def settings():
+    return [scene.render.engine, scene.cycles.device, scene.cycles.shading_system]
+
 obj = procedural_asset(TMP, size=16)
 scene = bpy.context.scene
-scene.render.engine, scene.cycles.shading_system = "CYCLES", True  # the neural preview is an OSL shader
+scene.render.engine = "CYCLES"  # Cycles as it starts: the CPU, Open Shading Language off
 scene.richmat.enhancement_type = "2"
 scene.richmat.output_dir = TMP + "/baked"
 scene.richmat.fit_steps = 5
-for op in ("uplift_material", "bake_parameters", "fit_neural", "preview_neural"):
+for op in ("uplift_material", "bake_parameters", "fit_neural"):
     res, err = run_op(op)
     assert res == {"FINISHED"}, (op, err)
+baked_name = obj.active_material.name
+out = {}
+# A GPU that cannot run OSL: one line saying what to switch, nothing changed.
+cycles_prefs = bpy.context.preferences.addons["cycles"].preferences
+cycles_prefs.compute_device_type, scene.cycles.device = "CUDA", "GPU"
+res, lines = press("preview_neural")
+out["cuda"] = dict(result=res, lines=lines, settings=settings(), material=obj.active_material.name)
+cycles_prefs.compute_device_type, scene.cycles.device = "NONE", "CPU"
+# The CPU with OSL off: the preview turns OSL on and says so.
+res, lines = press("preview_neural")
 material = obj.active_material
 img = render(32, 4)
-print("RESULT " + json.dumps(dict(name=material.name, nodes=sorted(n.name for n in material.node_tree.nodes),
-                                  finite=bool(np.isfinite(img).all()), mean=float(img.mean()))))
+out["cpu"] = dict(result=res, lines=lines, settings=settings(), name=material.name,
+                  nodes=sorted(n.name for n in material.node_tree.nodes),
+                  cycles_reads=material.node_tree.nodes["richmat_output"].inputs["Surface"].links[0].from_node.name,
+                  finite=bool(np.isfinite(img).all()), mean=float(img.mean()))
+# EEVEE (Blender's default engine) with OSL off: OSL on for Cycles, and the engine to switch named.
+scene.render.engine, scene.cycles.shading_system = "BLENDER_EEVEE", False
+res, lines = press("preview_neural")
+out["eevee"] = dict(result=res, lines=lines, settings=settings())
+out["baked_name"] = baked_name
+print("RESULT " + json.dumps(out))
 '''
 
 
-def test_preview_operator_builds_and_renders_the_neural_material(blender_run, extension_zip: Path,  # noqa: F811
-                                                                 tmp_path: Path):
+def test_preview_operator_turns_osl_on_where_it_can_and_names_the_switch_where_it_cannot(
+        blender_run, extension_zip: Path, tmp_path: Path):  # noqa: F811
     result = blender_run(script(f"TMP = {str(tmp_path)!r}\n" + PREVIEW, extension_zip))
-    assert result["name"] == "painted_mat (richmat neural)"
-    assert {"richmat_neural_osl", "tex_latent_0", "tex_latent_1", "normal_map"} <= set(result["nodes"])
-    assert result["finite"] and result["mean"] > 0
+    cuda, cpu, eevee = result["cuda"], result["cpu"], result["eevee"]
+    assert cuda["result"] == ["CANCELLED"] and cuda["settings"] == ["CYCLES", "GPU", False]
+    assert "CUDA" in cuda["lines"] and "Device to CPU" in cuda["lines"] and "OptiX" in cuda["lines"]
+    assert cuda["material"] == result["baked_name"]  # nothing changed
+    assert cpu["result"] == ["FINISHED"], cpu["lines"]
+    assert cpu["settings"] == ["CYCLES", "CPU", True]  # OSL on; engine and device as they were
+    assert "Turned on Open Shading Language" in cpu["lines"] and "Neural preview" in cpu["lines"]
+    assert cpu["name"] == "painted_mat (richmat neural)" and cpu["cycles_reads"] == "richmat_neural_osl"
+    assert {"richmat_neural_osl", "tex_latent_0", "tex_latent_1", "normal_map"} <= set(cpu["nodes"])
+    assert cpu["finite"] and cpu["mean"] > 0
+    assert eevee["result"] == ["FINISHED"], eevee["lines"]
+    assert eevee["settings"] == ["BLENDER_EEVEE", "CPU", True]
+    assert "Turned on Open Shading Language" in eevee["lines"] and "Render Engine to Cycles" in eevee["lines"]

@@ -220,10 +220,14 @@ enhanced = obj.active_material
 after = (scene.render.engine, scene.cycles.device, scene.cycles.shading_system)
 out = {"uplift": list(res), "engine": [list(before), list(after)], "graphs": [builder.cycles_graph(enhanced)]}
 native = render(24, 8)
+prefs = bpy.context.preferences.addons["cycles"].preferences
+prefs.compute_device_type, scene.cycles.device = "CUDA", "GPU"  # a GPU that cannot run OSL: refused
 res, err = run_op("toggle_cycles_graph")
-out["refused"] = [sorted(res), err]
-scene.cycles.shading_system = True
+out["refused"] = [sorted(res), err, scene.cycles.shading_system]
+out["graphs"].append(builder.cycles_graph(enhanced))
+prefs.compute_device_type, scene.cycles.device = "NONE", "CPU"  # the CPU: the toggle turns OSL on itself
 out["toggled"] = list(run_op("toggle_cycles_graph")[0])
+out["osl_on"] = [scene.render.engine, scene.cycles.device, scene.cycles.shading_system]
 out["graphs"].append(builder.cycles_graph(enhanced))
 osl = render(24, 8)
 scene.cycles.shading_system = False  # OSL off again: the handler must not leave a black material
@@ -238,10 +242,12 @@ def test_uplift_keeps_the_engine_and_the_toggle_never_leaves_black(blender_run, 
     result = blender_run(script(TOGGLE, extension_zip))
     assert result["uplift"] == ["FINISHED"]
     assert result["engine"][0] == result["engine"][1] == ["CYCLES", "CPU", False]
-    # Cycles without OSL: native; OSL refused until it is on; then OSL; OSL off again: native.
-    assert result["graphs"] == ["native", "osl", "native"]
-    assert result["refused"][0] == ["CANCELLED"] and "Open Shading Language" in result["refused"][1]
-    assert result["toggled"] == ["FINISHED"]
+    # Cycles without OSL: native; refused on CUDA (naming the switch, nothing changed); on the CPU the
+    # toggle turns OSL on (engine and device kept) and Cycles reads OSL; OSL off again: native.
+    assert result["graphs"] == ["native", "native", "osl", "native"]
+    assert result["refused"][0] == ["CANCELLED"] and result["refused"][2] is False
+    assert "CUDA" in result["refused"][1] and "Device to CPU" in result["refused"][1]
+    assert result["toggled"] == ["FINISHED"] and result["osl_on"] == ["CYCLES", "CPU", True]
     native, osl = result["means"]
     assert native > 0.01 and osl > 0.01 and abs(native - osl) < 0.1 * osl
 

@@ -24,6 +24,13 @@ from .schema import PARAM_BY_NAME, PARAMS
 DUST_MASK_FLOOR = 0.35  # dust weight between mask features, as a share of the peak
 DUST_MASK_SCALE = (1.0, 3.0)  # the range of the triplanar dust mask's scale (features per unit), drawn per material
 METALLIC_THRESHOLD = 0.5  # mean metalness above which a material counts as a metal
+# Auto's touch: the rules add about the same reflectance whatever the base (a clear coat's Fresnel ~0.09 of
+# uniform light, white dust and fuzz, scatter lifted toward white), which greys a dark base. Auto scales the
+# enhancement per texel by (base luminance / FULL_TOUCH_LUMINANCE)^TOUCH_POWER, at most 1 (linear luminance;
+# 0.18 is sRGB 0.46): a tyre at 0.02 keeps 4 % of it, a mid-grey paint all of it.
+FULL_TOUCH_LUMINANCE = 0.18
+TOUCH_POWER = 1.5
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722], np.float32)  # Rec.709, scene-linear
 
 
 def is_metallic(pbr: PbrInputs) -> bool:
@@ -123,10 +130,43 @@ def _dust_weight(pbr: PbrInputs, rng: np.random.Generator, peak: float,
     return peak * up * tri
 
 
+def auto_touch(pbr: PbrInputs) -> ParamMap:
+    """How much of the enhancement Auto applies, per texel of the base colour (a constant for a constant
+    base): full on a base of mid-grey luminance or lighter, less on darker ones (tyres, dark glass, dark
+    paint), which the rules' light dust, haze and scatter would otherwise turn grey."""
+    lum = np.nan_to_num(np.clip(pbr.base_color.value, 0.0, 1.0)) @ LUMINANCE
+    return ParamMap((np.clip(lum / FULL_TOUCH_LUMINANCE, 0.0, 1.0) ** TOUCH_POWER)[..., None].astype(np.float32))
+
+
+def _resampled(value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """A (C,) or (H, W, C) array on the grid of ``shape`` (nearest texel), so maps of different sizes mix."""
+    if value.ndim == 1 or len(shape) == 1 or value.shape[:2] == tuple(shape[:2]):
+        return value
+    h, w = shape[:2]
+    rows = (np.arange(h) * value.shape[0]) // h
+    cols = (np.arange(w) * value.shape[1]) // w
+    return value[rows][:, cols]
+
+
+def scale_enhancement(mat: EnhancedMaterial, plain: EnhancedMaterial, amount: ParamMap) -> EnhancedMaterial:
+    """``mat`` moved toward ``plain`` (its PBR material in the same model, ``baseline``): every parameter
+    ``plain + amount (enhanced - plain)``, so lobe weights scale by ``amount`` and 0 gives back the PBR
+    material. ``amount`` is a constant or a map over the base colour's texels."""
+    params = {}
+    for name, m in mat.params.items():
+        e, b = m.value, plain.params[name].value
+        shape = max((e.shape, b.shape, amount.value.shape), key=len)
+        e, b, a = (_resampled(v, shape) for v in (e, b, amount.value))
+        params[name] = _fit(name, b + a * (e - b)).collapse()  # a lerp of equal texels stays a constant
+    return EnhancedMaterial(mat.name, mat.type, mat.seed, mat.base_color, params, mat.settings)
+
+
 def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
             world_normals: ParamMap | None = None,
-            world_positions: ParamMap | None = None) -> EnhancedMaterial:
-    """Enhance one material. Types 4/5 on a metal raise ValueError (see resolve_type)."""
+            world_positions: ParamMap | None = None, amount: float = 1.0, touch: bool = False) -> EnhancedMaterial:
+    """Enhance one material, scaled toward the PBR material by ``amount`` in [0, 1] (1: the rules as drawn),
+    times ``auto_touch`` per texel with ``touch`` (what Auto asks for). Types 4/5 on a metal raise
+    ValueError (see resolve_type)."""
     resolved, note = resolve_type(pbr, type_, seed)
     if type_ != "auto" and resolved != int(type_):
         raise ValueError(f"{pbr.name}: {note}. Choose a type in {index_ranges(METAL_TYPES)} for metals.")
@@ -171,7 +211,12 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
 
     params = {p.name: _fit(p.name, values.get(p.name, p.default)) for p in PARAMS}
     settings = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in s.items()}
-    return EnhancedMaterial(pbr.name, resolved, seed, ParamMap(base), params, settings)
+    mat = EnhancedMaterial(pbr.name, resolved, seed, ParamMap(base), params, settings)
+    if amount == 1.0 and not touch:
+        return mat
+    settings.update(amount=float(amount), auto_touch=touch)
+    scale = auto_touch(pbr).value * amount if touch else np.float32([amount])
+    return scale_enhancement(mat, baseline(pbr), ParamMap(scale))
 
 
 def baseline(pbr: PbrInputs) -> EnhancedMaterial:
