@@ -180,11 +180,10 @@ def summary(rows: list[dict]) -> dict:
     return out
 
 
-COLUMNS = ("Cycles closures", "Cycles emission (before)", "torch decoder (reference)", "FLIP closures",
-           "FLIP emission")
+COLUMNS = ("Cycles closures", "Cycles emission", "torch reference", "FLIP closures", "FLIP emission")
 
 
-def sheet_image(rows: list, path: Path, scale: int = 3) -> None:
+def sheet_image(rows: list, path: Path, scale: int = 4) -> None:
     """One row per case: the COLUMNS, each ball enlarged ``scale`` times, labelled."""
     from PIL import Image, ImageDraw
 
