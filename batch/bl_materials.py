@@ -5,7 +5,7 @@ leniently, ``richmat_addon.blender.unwrap``), so the farm and the add-on see a
 material the same way. Any input the reader cannot follow keeps the socket's own
 value, with a note; textures larger than ``max_texture`` are downscaled (noted);
 missing image files fall back to the socket value (noted), as do textures of
-meshes that cannot be unwrapped.
+meshes that cannot be unwrapped; a transparent material is rendered opaque (noted).
 
 Two glTF layouts the add-on's reader leaves alone are handled here: vertex
 colours multiplying the base colour (the glTF importer links COLOR_0 to it) are
@@ -112,6 +112,19 @@ def _uv_map(node: bpy.types.ShaderNodeTexImage) -> str | None:
     return None
 
 
+def _transparency_note(mat: bpy.types.Material) -> str | None:
+    """A transparent source material (glTF alphaMode BLEND or MASK) is rendered opaque: the note saying so."""
+    try:
+        alpha = find_principled(mat).inputs["Alpha"]
+    except InputProblem:
+        return None
+    if not alpha.is_linked and alpha.default_value >= 1.0:
+        return None
+    kind = "alpha blending" if mat.surface_render_method == "BLENDED" else "transparency"
+    source = "its Alpha input is linked" if alpha.is_linked else f"alpha {alpha.default_value:.3g}"
+    return f"{mat.name!r} has {kind} ({source}): rendered opaque, the enhanced material has no alpha"
+
+
 def read_pbr(mat: bpy.types.Material, max_texture: int) -> MaterialSource:
     """The add-on's reader, lenient: what it cannot follow keeps the socket's value, with a note.
 
@@ -121,6 +134,9 @@ def read_pbr(mat: bpy.types.Material, max_texture: int) -> MaterialSource:
     vertex_colours = _take_vertex_colours(mat)
     sources = read_sources(mat, "lenient")
     pbr = load_pbr(sources, max_texture)
+    transparency = _transparency_note(mat)
+    if transparency is not None:
+        sources.notes.append(transparency)
     uv_maps = list(dict.fromkeys(_uv_map(node) for node in sources.image_nodes()))
     if len(uv_maps) > 1:
         sources.notes.append(f"the textures of {mat.name!r} read {len(uv_maps)} UV maps "

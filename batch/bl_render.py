@@ -28,13 +28,40 @@ ELEVATION_DEG, ELEVATION_SWING_DEG = 25.0, 10.0
 FRAMING_MARGIN = 1.08
 
 
-def configure_cycles(scene: bpy.types.Scene, resolution: int, samples: int, threshold: float,
-                     threads: int, graph: str = "osl", prefilter: str = "fast") -> None:
-    """The beauty pass; ``graph`` "osl" shades with OSL (the Script node runs only there), "native" with SVM;
-    ``prefilter`` is OIDN's for its albedo and normal passes (``options.DENOISE_PREFILTERS``)."""
+class DeviceMissing(Exception):
+    """The asked-for Cycles device is not on this machine (or not in this Blender)."""
+
+
+def use_device(scene: bpy.types.Scene, device: str) -> None:
+    """Render ``scene`` on ``device`` ("CPU" or a Cycles GPU backend) with every such GPU and no CPU;
+    raise ``DeviceMissing`` rather than let Cycles fall back to the CPU."""
     scene.render.engine = "CYCLES"
+    if device == "CPU":
+        scene.cycles.device = "CPU"
+        return
+    prefs = bpy.context.preferences.addons["cycles"].preferences
+    backends = [t[0] for t in prefs.get_device_types(bpy.context) if t[0] != "NONE"]
+    if device not in backends:
+        raise DeviceMissing(f"--device {device}: this Blender has no {device} backend (it has "
+                            f"{', '.join(backends) or 'none'}); not rendering on the CPU instead")
+    prefs.compute_device_type = device
+    gpus = [d for d in prefs.get_devices_for_type(device) if d.type == device]
+    if not gpus:
+        listed = ", ".join(f"{d.name} ({d.type})" for d in prefs.devices) or "nothing"
+        raise DeviceMissing(f"--device {device}: Cycles finds no {device} device on this machine (it lists "
+                            f"{listed}); not rendering on the CPU instead")
+    for d in prefs.devices:
+        d.use = d.type == device
+    scene.cycles.device = "GPU"
+
+
+def configure_cycles(scene: bpy.types.Scene, resolution: int, samples: int, threshold: float,
+                     threads: int, graph: str = "osl", prefilter: str = "fast", device: str = "CPU") -> None:
+    """The beauty pass; ``graph`` "osl" shades with OSL (the Script node runs only there), "native" with SVM;
+    ``prefilter`` is OIDN's for its albedo and normal passes (``options.DENOISE_PREFILTERS``); ``device`` as
+    ``use_device`` (the intrinsics pass keeps it)."""
+    use_device(scene, device)
     cy = scene.cycles
-    cy.device = "CPU"
     cy.shading_system = graph == "osl"
     cy.samples = samples
     cy.use_adaptive_sampling = True

@@ -6,8 +6,10 @@
 enhanced shader (``--graph``: the OSL one or the native node graph), render
 the orbit's beauty (PNG), then the intrinsics pass (multilayer EXR per frame,
 see ``bl_render``), encode the MP4, write ``cameras.json`` and ``render.json``.
-A bad asset ends in ``error.json`` and exit code 3; anything else that goes
-wrong is a crash the orchestrator records with its stderr.
+``device``: only check that ``--device`` renders here.
+A bad asset, or a device that is not there, ends in ``error.json`` and exit
+code 3; anything else that goes wrong is a crash the orchestrator records with
+its stderr.
 
 Run as ``python batch/blender_job.py STAGE ...`` (pip bpy) or
 ``blender -b -Y --factory-startup -P batch/blender_job.py -- STAGE ...``.
@@ -26,8 +28,10 @@ if str(REPO) not in sys.path:
 
 import bpy  # noqa: E402
 
+from batch import bl_render  # noqa: E402
 from batch.bl_scene import BadAsset  # noqa: E402
-from batch.options import DEFAULT_DENOISE_PREFILTER, DEFAULT_MAX_TRIANGLES, DENOISE_PREFILTERS  # noqa: E402
+from batch.options import (  # noqa: E402
+    DEFAULT_DENOISE_PREFILTER, DEFAULT_MAX_TRIANGLES, DENOISE_PREFILTERS, DEVICES)
 from richmat_addon.core.stage_clock import StageClock  # noqa: E402
 
 BAD_INPUT_EXIT = 3  # batch.pipeline.BAD_INPUT_EXIT (not imported: the orchestrator side stays bpy-free)
@@ -86,7 +90,7 @@ def render(args: argparse.Namespace) -> None:
     from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
 
     prefer_blender_bundled_modules()  # before anything imports OpenImageIO: OSL needs Blender's copy
-    from batch import bl_render, dataset_material
+    from batch import dataset_material
 
     clock = StageClock()
     with clock.stage("open"):
@@ -102,7 +106,7 @@ def render(args: argparse.Namespace) -> None:
 
     with clock.stage("beauty"):
         bl_render.configure_cycles(scene, args.resolution, args.samples, args.adaptive_threshold, args.threads,
-                                   args.graph, args.denoise_prefilter)
+                                   args.graph, args.denoise_prefilter, args.device)
         scene.world = bl_render.probe_world(args.probe)
         cam = bl_render.orbit(scene, args.frames, bl_render.start_azimuth(args.asset_id, args.seed))
         for slot, name in zip(slots, originals):
@@ -132,6 +136,11 @@ def render(args: argparse.Namespace) -> None:
     (args.work / "render.json").write_text(json.dumps({"frames": frames, **record}, indent=1))
 
 
+def device(args: argparse.Namespace) -> None:
+    """Only check that ``--device`` renders here (the orchestrator asks before any asset starts)."""
+    bl_render.use_device(bpy.context.scene, args.device)
+
+
 def parse(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="blender_job.py", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="stage", required=True)
@@ -150,6 +159,10 @@ def parse(argv: list[str]) -> argparse.Namespace:
     r.add_argument("--aov-samples", type=int, required=True)
     r.add_argument("--graph", choices=("osl", "native"), default="osl")
     r.add_argument("--threads", type=int, default=1)
+    d = sub.add_parser("device")
+    d.add_argument("--work", type=Path, required=True)
+    for stage in (r, d):
+        stage.add_argument("--device", choices=DEVICES, default="CPU")
     for stage in (p, r):
         stage.add_argument("--work", type=Path, required=True)
         stage.add_argument("--asset-id", required=True)
@@ -160,10 +173,10 @@ def parse(argv: list[str]) -> argparse.Namespace:
 def main(argv: list[str]) -> int:
     args = parse(argv)
     try:
-        {"prepare": prepare, "render": render}[args.stage](args)
-    except BadAsset as exc:
+        {"prepare": prepare, "render": render, "device": device}[args.stage](args)
+    except (BadAsset, bl_render.DeviceMissing) as exc:
         (args.work / "error.json").write_text(json.dumps({"stage": args.stage, "reason": str(exc)}))
-        print(f"bad asset: {exc}", file=sys.stderr)
+        print(f"refused: {exc}", file=sys.stderr)
         return BAD_INPUT_EXIT
     return 0
 

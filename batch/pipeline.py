@@ -13,6 +13,7 @@ import json
 import os
 import platform
 import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -54,15 +55,38 @@ class Commands:
         return [self.python, str(self.fit_script), *args]
 
 
+VENV_PYTHON = REPO / ".venv" / "bin" / "python"
+
+
 def default_commands(blender: str | None, python: str | None) -> Commands:
-    """Children like the parent: the same Blender under ``blender -P``, else this Python (pip bpy)."""
+    """Children like the parent: the same Blender under ``blender -P``, else this Python (pip bpy).
+
+    The fit's Python: ``--python``, else ``$RICHMAT_PYTHON``, else under a Blender binary the
+    checkout's ``.venv/bin/python`` (Blender's own Python has no torch), else this Python.
+    """
     bpy = sys.modules.get("bpy")  # present (not imported here) only when running inside Blender
     inside_blender = bpy is not None and bool(getattr(bpy.app, "binary_path", ""))
     blender_cmd = blender or (bpy.app.binary_path if inside_blender else sys.executable)
-    venv = REPO / ".venv" / "bin" / "python"
-    python_cmd = python or os.environ.get("RICHMAT_PYTHON") or (
-        str(venv) if inside_blender and venv.exists() else sys.executable)
-    return Commands(blender_cmd, python_cmd)
+    python_cmd = python or os.environ.get("RICHMAT_PYTHON")
+    if python_cmd is None and inside_blender:
+        if not VENV_PYTHON.exists():
+            raise ValueError(f"the fit step needs a Python with torch, and Blender's has none: found no "
+                             f"--python, no $RICHMAT_PYTHON and no {VENV_PYTHON} (`make env` makes it)")
+        python_cmd = str(VENV_PYTHON)
+    return Commands(blender_cmd, python_cmd or sys.executable)
+
+
+def check_fit_python(python: str) -> None:
+    """Refuse a fit interpreter that cannot import torch before any asset is started."""
+    try:
+        proc = subprocess.run([python, "-c", "import torch"], capture_output=True, text=True, timeout=600)
+    except OSError as exc:
+        raise ValueError(f"the fit's Python {python} cannot be run ({exc.strerror}); the fit step needs a Python "
+                         f"with torch, such as {VENV_PYTHON} (`make env` makes it)") from None
+    if proc.returncode != 0:
+        last = (proc.stderr.strip().splitlines() or [f"exit code {proc.returncode}"])[-1]
+        raise ValueError(f"the fit's Python {python}: `import torch` fails ({last}); the fit step needs a Python "
+                         f"with torch, such as {VENV_PYTHON} (`make env` makes it)")
 
 
 @dataclass
@@ -108,10 +132,28 @@ def _stage_commands(asset: Asset, job: Job, work: Path) -> list[tuple[str, list[
     render = ["render", "--work", str(work), "--asset-id", asset.id, "--frames", str(s.frames),
               "--resolution", str(s.resolution), "--samples", str(s.samples),
               "--adaptive-threshold", str(s.adaptive_threshold), "--denoise-prefilter", s.denoise_prefilter,
-              "--aov-samples", str(s.aov_samples),
+              "--aov-samples", str(s.aov_samples), "--device", s.device,
               "--graph", s.graph, "--probe", str(job.probe), "--seed", str(s.seed), "--threads", str(threads)]
     return [("prepare", job.commands.blender_job(prepare)), ("fit", job.commands.fit_job(fit)),
             ("render", job.commands.blender_job(render))]
+
+
+def device_problem(job: Job) -> str | None:
+    """Why ``--device`` cannot render here (None when it can): one Blender asked before any asset starts,
+    so a missing GPU fails the run at once instead of every asset after its prepare and fit."""
+    device = job.settings.device
+    if device == "CPU":
+        return None
+    with tempfile.TemporaryDirectory(prefix="richmat-device-") as folder:
+        work = Path(folder)
+        out = runner.run(job.commands.blender_job(["device", "--device", device, "--work", str(work)]), 600,
+                         work / "logs" / "device", env=_child_env(work / "home", 1), cwd=work)
+        if out.ok:
+            return None
+        reason = _bad_input_reason(work)
+        if out.exit_code == BAD_INPUT_EXIT and reason:
+            return reason
+        return f"--device {device}: the device check failed ({out.describe()}): {out.stderr_tail[-500:]}"
 
 
 def _bad_input_reason(work: Path) -> str | None:

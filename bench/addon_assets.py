@@ -40,8 +40,9 @@ from pathlib import Path
 import numpy as np
 
 from bench.common import REPORTS, add_out_argument, pyplot, save_chart, write_report
-from tests.conftest import SHARED_ASSETS, run_blender
-from tests.test_addon_extension import build_extension, script
+from support.blender_child import run_blender
+from support.extension import build_extension, script
+from support.paths import SHARED_ASSETS
 from torch_models.neural import weights
 from torch_models.neural.evaluate import DEFAULT_PROBE
 from torch_models.render.flip import flip_map
@@ -52,7 +53,8 @@ ASSETS = ("WaterBottle", "CesiumMilkTruck", "FlightHelmet")
 SHEET_COLUMNS = (("original", "as imported"), ("uplift", "1 Uplift"), ("bake", "2 Bake: analytic"),
                  ("preview", "4 Preview: neural"), ("flip", "FLIP Bake vs Preview"), ("fit", "3 Fit: latent 0"))
 
-PIPELINE = r'''
+# What every add-on bench run in Blender shares: the asset imported, framed, rendered.
+SCENE = r'''
 import math
 from mathutils import Vector
 from bl_ext.user_default.richmat.blender import uplift
@@ -120,6 +122,20 @@ def render_mask():
     return scene.render.filepath
 
 
+def import_asset():
+    """The glTF, its images scaled down to TEXTURE_SIZE texels at most (bake and fit cost grow with texels)."""
+    bpy.ops.import_scene.gltf(filepath=ASSET)
+    sizes = {}
+    for image in bpy.data.images:
+        w, h = image.size
+        k = max(w, h) / TEXTURE_SIZE if TEXTURE_SIZE else 0
+        if k > 1:
+            image.scale(max(1, round(w / k)), max(1, round(h / k)))
+        sizes[image.name] = [w, h, *image.size]
+    return [], {"images": sizes}
+'''
+
+PIPELINE = SCENE + r'''
 def latent_view(enhanced):
     """An emission material showing latent 0 of a fitted material (0.5 + 0.25 z)."""
     neural = neural_folder.read(Path(enhanced.richmat.neural_dir))
@@ -190,19 +206,6 @@ def fit_all():
                 "texels", "exact_unique_vectors", "fitted_vectors", "encoder_only", "steps", "refit_steps", "final_loss",
                 "furnace", "decoder_sha256")})
     return errors, details
-
-
-def import_asset():
-    """The glTF, its images scaled down to TEXTURE_SIZE texels at most (bake and fit cost grow with texels)."""
-    bpy.ops.import_scene.gltf(filepath=ASSET)
-    sizes = {}
-    for image in bpy.data.images:
-        w, h = image.size
-        k = max(w, h) / TEXTURE_SIZE if TEXTURE_SIZE else 0
-        if k > 1:
-            image.scale(max(1, round(w / k)), max(1, round(h / k)))
-        sizes[image.name] = [w, h, *image.size]
-    return [], {"images": sizes}
 
 
 def files_under(root):

@@ -1,7 +1,7 @@
 """Cycles (OSL) against the torch renderer: mean FLIP per case on the preview ball.
 
 For each of Types 0-5 and for each lobe alone, constant materials are drawn
-from the seed (bench/agreement_cases.py), rendered once by Cycles in a child
+from the seed (support/agreement_cases.py), rendered once by Cycles in a child
 process with the pip bpy module (bench/agreement_cycles.py) and once by
 torch_models.render, same ball, same probe, both tone mapped with Blender's AgX,
 and compared with LDR-FLIP (sRGB, 67 ppd; see torch_models/render/flip.py).
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from bench.agreement_cases import Case, cases
+from support.agreement_cases import Case, cases
 from bench.common import FLIP_CONVENTION, REPO, REPORTS, contact_sheet, pyplot, run_python, save_chart, write_report
 from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.preview import PreviewScene

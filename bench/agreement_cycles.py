@@ -18,7 +18,7 @@ from pathlib import Path
 
 import bpy
 
-from bench.agreement_cases import Case
+from support.agreement_cases import Case
 from richmat_addon.blender import cycles_builder, preview_scene
 from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
 from richmat_addon.core.preview import PreviewScene

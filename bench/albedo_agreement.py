@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from bench.agreement_cases import cases
+from support.agreement_cases import cases
 from bench.common import add_out_argument, pyplot, save_chart, write_report
 from richmat_addon.core.enhancement_types import TYPES
 from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors

@@ -1,7 +1,7 @@
 """Issue 5's acceptance run: the farm batch over the sample assets plus broken files, killed and restarted.
 
 Builds an input folder (every model of ../shared/assets/models, the broken and
-awkward files of tests/test_batch_render.py, a corrupt PLY and a copy of Box
+awkward files of support/batch_inputs.py, a corrupt PLY and a copy of Box
 under a unicode name), then
 - run A: ``batch/render_dataset.py`` uninterrupted;
 - run B: the same command into another folder, SIGKILLed (no clean-up handler
@@ -35,8 +35,8 @@ from PIL import Image
 from batch import ledger
 from batch.options import DEFAULT_DECODER
 from bench.common import REPO, add_out_argument, child_env, write_report
-from tests.conftest import SHARED_ASSETS
-from tests.test_batch_render import make_inputs
+from support.paths import SHARED_ASSETS
+from support.batch_inputs import make_inputs
 
 
 def build_inputs(folder: Path, env: dict[str, str]) -> None:

@@ -4,11 +4,11 @@ Cycles' ``sheen`` reads (A, B, R) from its own tabulation of Zeltner et al.'s
 data, which differs from the closed-form fits MaterialX publishes (A by up to
 0.07): enough to show as FLIP 0.03 on a dust-covered ball. Rather than copying
 Cycles' table, we measure the closure: Cycles renders spheres of the sheen lobe
-alone (one per roughness node) under zero-angle suns (bench/sheen_cycles.py),
+alone (one per roughness node) under zero-angle suns (support/sheen_cycles.py),
 each pixel giving f(wi, wo) cos(theta_o) exactly, and we fit the 32 x 32 x 3
 table (initialised from the fits) to those values in log space with Adam.
 
-    python -m bench.calibrate_sheen [--out torch_models/brdf/data/sheen_ltc.npy]
+    python -m bench.calibrate_sheen [--out richmat_addon/core/data/sheen_ltc.npy]
 
 Writes the table and docs/reports/sheen_calibration.json (the fit's residual before and
 after, per roughness). Takes ~5 minutes on 2 cores.
@@ -25,14 +25,15 @@ import numpy as np
 import torch
 
 from bench.common import REPO, REPORTS, run_python, write_report
-from torch_models.brdf import lobes, tables
-from torch_models.brdf.frame import tangent_frame, to_local
+from richmat_addon.core.schema import SHEEN_ROUGHNESS_MIN
+from richmat_addon.core.sheen_table import SHEEN_TABLE_FILE
+from support.sheen_measurement import model, samples, to_shading
+from torch_models.brdf import tables
 
 SUNS = 24
 PX_PER_UNIT = 24
 STEPS = 800
 PRIOR = 1e-3  # weight of the pull towards the starting table
-MU_MIN = 0.2  # grazing limit of trusted pixels (see samples())
 
 
 def sun_directions(n: int) -> np.ndarray:
@@ -47,7 +48,7 @@ def sun_directions(n: int) -> np.ndarray:
 
 
 def roughness_nodes() -> list[float]:
-    return [max(i / (tables.SHEEN_SIZE - 1), lobes.SHEEN_ROUGHNESS_MIN) for i in range(tables.SHEEN_SIZE)]
+    return [max(i / (tables.SHEEN_SIZE - 1), SHEEN_ROUGHNESS_MIN) for i in range(tables.SHEEN_SIZE)]
 
 
 def measure(folder: Path) -> tuple[list[np.ndarray], dict, np.ndarray]:
@@ -55,7 +56,7 @@ def measure(folder: Path) -> tuple[list[np.ndarray], dict, np.ndarray]:
     job = folder / "job.json"
     job.write_text(json.dumps({"roughness": roughness_nodes(), "suns": suns.tolist(),
                                "px_per_unit": PX_PER_UNIT, "out": str(folder)}))
-    run_python(["-m", "bench.sheen_cycles", str(job)], folder)
+    run_python(["-m", "support.sheen_cycles", str(job)], folder)
     return load_measurement(folder)
 
 
@@ -66,43 +67,6 @@ def load_measurement(folder: Path) -> tuple[list[np.ndarray], dict, np.ndarray]:
     images = [oiio.ImageBuf(str(folder / f"sun_{k}.exr")).get_pixels(oiio.FLOAT)[..., 0]
               for k in range(len(suns))]
     return images, json.loads((folder / "layout.json").read_text()), suns
-
-
-def samples(images: list[np.ndarray], layout: dict, suns: np.ndarray) -> dict[str, torch.Tensor]:
-    """Per lit pixel of every sphere: normal, sun direction, sphere index, measured f cos."""
-    h, w = images[0].shape
-    ys, xs = np.mgrid[0:h, 0:w] + 0.5
-    rad = layout["radius_px"]
-    rows = []
-    for s, (cx, cy) in enumerate(layout["centres_px"]):
-        ox, oz = (xs - cx) / rad, -(ys - cy) / rad
-        # mu >= 0.2 only: on the white Lambertian sphere, pixels seen more grazingly than that
-        # differ from cos/pi by 10-30 % (silhouette sampling), above it by 1 % (median).
-        inside = ox ** 2 + oz ** 2 < 1.0 - MU_MIN ** 2
-        n = np.stack([ox[inside], -np.sqrt(1 - ox[inside] ** 2 - oz[inside] ** 2), oz[inside]], -1)
-        for k, d in enumerate(suns):
-            rows.append((n, np.broadcast_to(d, n.shape), np.full(len(n), s), images[k][inside]))
-    n, d, sphere, value = (np.concatenate(c) for c in zip(*rows))
-    keep = (n @ np.array([0, -1.0, 0]) > 0) & ((n * d).sum(-1) > 0.02)
-    t = lambda a, dt=torch.float64: torch.from_numpy(np.ascontiguousarray(a[keep])).to(dt)  # noqa: E731
-    return {"n": t(n), "d": t(d), "sphere": t(sphere, torch.long), "value": t(value)}
-
-
-def to_shading(n: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
-    """v in a frame whose z is n (any tangent; the sheen frame is applied later)."""
-    helper = torch.where(n[:, 2:3].abs() < 0.9, torch.tensor([0.0, 0, 1], dtype=n.dtype),
-                         torch.tensor([1.0, 0, 0], dtype=n.dtype))
-    t = torch.nn.functional.normalize(torch.cross(helper, n, dim=-1), dim=-1)
-    b = torch.cross(n, t, dim=-1)
-    return torch.stack([(v * t).sum(-1), (v * b).sum(-1), (v * n).sum(-1)], -1)
-
-
-def model(table: torch.Tensor, wi: torch.Tensor, wo: torch.Tensor, r: torch.Tensor) -> torch.Tensor:
-    """R * LTC density, as lobes.sheen_eval, with the table as a free parameter."""
-    mu = wi[:, 2:3]
-    a, b, albedo = (tables.lookup(table[j], mu, r) for j in range(3))
-    frame = tangent_frame(wi)
-    return (albedo * lobes._ltc_density(to_local(wo, *frame), a, b)).squeeze(-1)
 
 
 def fit(start: torch.Tensor, loss_of) -> torch.Tensor:  # type: ignore[no-untyped-def]
@@ -132,7 +96,7 @@ def fit(start: torch.Tensor, loss_of) -> torch.Tensor:  # type: ignore[no-untype
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=REPO / "torch_models" / "brdf" / "data" / "sheen_ltc.npy")
+    parser.add_argument("--out", type=Path, default=SHEEN_TABLE_FILE)
     parser.add_argument("--report", type=Path, default=REPORTS / "sheen_calibration.json")
     parser.add_argument("--measurements", type=Path, default=None,
                         help="keep the Cycles measurement in this folder, or reuse the one already there")

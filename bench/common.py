@@ -1,10 +1,8 @@
-"""What every bench shares: where its report goes, how it is written, how its charts look.
+"""What every bench shares: where its report goes, how its charts look, its child processes.
 
-A report records the git commit (and whether the tree had uncommitted changes), the
-command line, the date, the machine, and the sha256 of each decoder and generator
-weights file it used, so a number quoted in the docs can be traced to the code and
-weights that produced it. A bench whose only output is a figure writes the same
-record into the PNG's text.
+A report is written with ``write_report`` (``support.reports``: the provenance that traces a
+number quoted in the docs to the code and weights that produced it). A bench whose only output
+is a figure writes the same record (``provenance``) into the PNG's text.
 
 Benches run from the repository root as modules (``python -m bench.fit_flip``);
 a child process they start (a Cycles render with the pip bpy module) goes through
@@ -13,72 +11,29 @@ a child process they start (a Cycles render with the pip bpy module) goes throug
 from __future__ import annotations
 
 import argparse
-import datetime
-import hashlib
 import json
 import os
-import platform
 import shlex
 import subprocess
 import sys
-from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
+from support.paths import REPO
+from support.reports import file_sha256, provenance, write_report  # noqa: F401  (the benches' report writer)
+
 REPORTS = REPO / "docs" / "reports"
 FLIP_CONVENTION = "LDR-FLIP on AgX-tone-mapped sRGB, 67.02 pixels per degree"
 TARGET_MEDIAN, TARGET_WORST = 0.05, 0.12  # Table 1's targets: median and worst FLIP per type
 CHART_DPI = 110
 
 
-def _git(*args: str) -> str:
-    return subprocess.run(["git", *args], cwd=REPO, capture_output=True, text=True).stdout.strip()
-
-
-def file_sha256(path: Path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
-def _shown(path: Path) -> str:
-    """A path relative to the repository when it is inside it."""
-    full = Path(path).resolve()
-    return str(full.relative_to(REPO)) if full.is_relative_to(REPO) else str(full)
-
-
-def _command() -> str:
-    """The command line as it was typed: ``python -m bench.NAME ARGS``."""
-    spec = sys.modules["__main__"].__spec__
-    run = ["-m", spec.name] if spec is not None else [_shown(Path(sys.argv[0]))]
-    return shlex.join(["python", *run, *sys.argv[1:]])
-
-
-def provenance(decoders: Iterable[Path] = (), generator: Path | None = None) -> dict:
-    """The report's ``provenance`` block; ``decoders`` and ``generator`` are weights folders."""
-    # a bench rewrites its own reports as it goes: only changes outside docs/reports/ make the tree dirty
-    dirty = _git("status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)docs/reports")
-    out = {"git_commit": _git("rev-parse", "HEAD"), "tree_dirty": bool(dirty),
-           "command": _command(), "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-           "machine": {"platform": platform.platform(), "processor": platform.machine(), "cpus": os.cpu_count()},
-           "decoder_sha256": {_shown(d): file_sha256(Path(d) / "weights.safetensors") for d in decoders}}
-    if generator is not None:
-        out["generator_sha256"] = file_sha256(Path(generator) / "weights.safetensors")
-    return out
-
-
 def add_out_argument(parser: argparse.ArgumentParser, name: str) -> None:
     """``--out``, by default ``docs/reports/NAME``; charts and sheets go beside it."""
     parser.add_argument("--out", type=Path, default=REPORTS / name,
                         help=f"report file (default: docs/reports/{name}); charts beside it")
-
-
-def write_report(out: Path, report: dict, decoders: Iterable[Path] = (), generator: Path | None = None) -> None:
-    """The report as indented JSON with its provenance, its folder made if missing."""
-    out.parent.mkdir(parents=True, exist_ok=True)
-    text = json.dumps({**report, "provenance": provenance(decoders, generator)}, indent=1, ensure_ascii=False)
-    out.write_text(text, encoding="utf-8")
 
 
 def pyplot():  # type: ignore[no-untyped-def]

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.agreement_cases import cases
+from support.agreement_cases import cases
 from bench.common import REPO, add_out_argument, pyplot, save_chart, target_lines, write_report
 from bench.fit_speed import decoder_throughput
 from richmat_addon.core.enhancement_types import TYPES

@@ -1,7 +1,7 @@
 """The paper's Table 1: FLIP of fitted neural materials against the analytic reference.
 
 N random materials per type (the enhancement rules on random PBR inputs, as in
-bench/agreement_cases.py) are fitted together against each frozen decoder given
+support/agreement_cases.py) are fitted together against each frozen decoder given
 (``--weights``, repeatable: the kinds side by side on the same materials, the
 analytic references rendered once), then rendered on the preview ball with the
 torch renderer, analytically and neurally (same seed, same samples), and compared
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from bench.agreement_cases import Case, cases
+from support.agreement_cases import Case, cases
 from bench.common import (FLIP_CONVENTION, TARGET_MEDIAN, TARGET_WORST, add_out_argument, add_weights_argument,
                           pyplot, save_chart, target_lines, weights_folders, write_report)
 from richmat_addon.core.enhancement_types import TYPES

@@ -24,7 +24,7 @@ import numpy as np
 import torch
 
 from bench.common import add_out_argument, add_weights_argument, pyplot, save_chart, weights_folders, write_report
-from tests.conftest import SHARED_ASSETS
+from support.paths import SHARED_ASSETS
 from torch_models.cli import main as cli
 from torch_models.neural import weights
 from torch_models.neural.energy import fit_bounded

@@ -31,7 +31,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from bench.agreement_cases import cases
+from support.agreement_cases import cases
 from bench.common import add_out_argument, pyplot, save_chart, target_lines, write_report
 from bench.fit_flip import ranked
 from torch_models.neural import weights

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from bench.agreement_cases import cases
+from support.agreement_cases import cases
 from bench.common import add_out_argument, add_weights_argument, pyplot, save_chart, weights_folders, write_report
 from torch_models.neural import weights
 from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference

@@ -2,7 +2,7 @@
 
 Two sets, never trained on: procedural objects whose ids hash into the held-out split,
 and (``--real``) the real sample assets the corpus configuration holds out
-(``bench/held_out_assets.py``), read as ``generate`` reads a user's file, every part
+(``support/held_out_assets.py``), read as ``generate`` reads a user's file, every part
 with its UVs and maps. Each object's caption is its prompt. The object is rendered from
 16 orbit views with the generated latents and with the reference latents, same base
 colour, G-buffer shading under the default probe, AgX. The reference of a procedural
@@ -42,10 +42,10 @@ import numpy as np
 import torch
 
 from bench.common import REPORTS, pyplot, save_chart, write_report
-from bench.held_out_assets import RealHeldOut, real_held_out
+from support.held_out_assets import RealHeldOut, real_held_out
 from richmat_addon.core.enhance import baseline, enhance, is_metallic
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
-from torch_models.generator import (DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, GUIDANCE_BY_TYPE, corpus, procedural,
+from torch_models.generator import (DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, guidance_by_type, corpus, procedural,
                                     text)
 from torch_models.generator import generate as gen
 from torch_models.generator.dit import LatentGenerator
@@ -244,7 +244,7 @@ def main() -> int:
     best_baseline = max(overall[k]["psnr"] for k in METHODS[1:])
     report = {"kind": kind, "seed": args.seed, "checkpoint": str(args.checkpoint), "views": args.views,
               "eval_views": args.eval_views, "steps": args.steps, "samples": args.samples,
-              "guidance": GUIDANCE_BY_TYPE if args.guidance is None else args.guidance,
+              "guidance": guidance_by_type() if args.guidance is None else args.guidance,
               "resolution": args.resolution, "spp": args.spp, "overall": overall,
               "invalid_generated_texels": invalid,
               "energy_gaining_before_guard": float(np.mean([r["energy_gaining_before_guard"] for r in rows])),

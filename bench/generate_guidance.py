@@ -7,9 +7,9 @@ bench/generate_prompts.py) but can overshoot the residual the caption calls for,
 costs PSNR against the reference; guidance 1 is the prompted model alone and needs no
 unconditional pass, so it samples in half the time. For each guidance value, on the same
 inputs and seeds: PSNR and FLIP of the generation against its reference on the real
-assets the corpus holds out (bench/held_out_assets.py) and on held-out procedural objects
+assets the corpus holds out (support/held_out_assets.py) and on held-out procedural objects
 (bench/generate_eval.py), on two seeds; prompt sensitivity on the real dielectric assets
-(first seed); CPU seconds per generation. The table of defaults (``GUIDANCE_BY_TYPE``) is,
+(first seed); CPU seconds per generation. The table of defaults (``EnhancementType.guidance``) is,
 per enhancement type, the value with the best mean PSNR on that type's procedural objects;
 the real assets and the prompt sensitivity check it.
 
@@ -32,9 +32,9 @@ import torch
 from bench.common import REPORTS, pyplot, save_chart, write_report
 from bench.generate_eval import HeldOut, held_out, held_out_indices, render, scores
 from bench.generate_prompts import TARGET, prompt_pairs, real_prompts, sensitivity
-from bench.held_out_assets import real_held_out
+from support.held_out_assets import real_held_out
 from richmat_addon.core.enhancement_types import TYPES
-from torch_models.generator import GUIDANCE_BY_TYPE
+from torch_models.generator import guidance_by_type
 from torch_models.generator import generate as gen
 from torch_models.generator.mesh_input import MeshInput
 from torch_models.generator.train import GeneratorTrainConfig
@@ -210,7 +210,7 @@ def main() -> int:
     rows += at_table(rows, table)
     summary = summarise(rows, guidances + [PER_TYPE])
     report = {"guidances": guidances, "seeds": seeds, "procedural_per_type": args.per_type,
-              "shipped": GUIDANCE_BY_TYPE, "table": table,
+              "shipped": guidance_by_type(), "table": table,
               "target_sensitivity": TARGET, "per_type_psnr": per_type_psnr(rows, guidances),
               "summary": summary, "rows": rows}
     write_report(args.out, report, [weights.SHIPPED], args.checkpoint)

@@ -1,7 +1,7 @@
 """Does the generator follow the prompt visibly? Prompt sensitivity and a gallery (issue 30, item 4).
 
 On held-out procedural dielectrics (as bench/generate_eval.py picks them), or with
-``--real`` on the real sample assets the corpus holds out (bench/held_out_assets.py,
+``--real`` on the real sample assets the corpus holds out (support/held_out_assets.py,
 each read as ``generate`` reads it), metals left out since fuzz and scattering fall back
 to dust on a metal: every material is enhanced with each of Types 0, 1, 2 and 4 (its
 own draws), captioned as the corpus captions it, and the object generated from that
@@ -30,11 +30,11 @@ import torch
 
 from bench.common import REPORTS, provenance, pyplot, save_chart, write_report
 from bench.generate_eval import held_out_indices, latents_of, psnr, render, views_flip
-from bench.held_out_assets import RealHeldOut, real_held_out
+from support.held_out_assets import RealHeldOut, real_held_out
 from richmat_addon.core.enhance import enhance, is_metallic
 from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.maps import ParamMap
-from torch_models.generator import (DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, GUIDANCE_BY_TYPE, corpus,
+from torch_models.generator import (DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS, guidance_by_type, corpus,
                                     procedural)
 from torch_models.generator import generate as gen
 from torch_models.generator.mesh_input import MeshInput
@@ -128,7 +128,7 @@ def measure(args: argparse.Namespace) -> tuple[dict, list]:
     report = {"kind": "real" if args.real else "procedural", "seed": args.seed, "checkpoint": str(args.checkpoint), "prompt_types": list(PROMPT_TYPES),
               "eval_views": args.eval_views, "resolution": args.resolution, "spp": args.spp,
               "steps": DEFAULT_STEPS, "views": DEFAULT_VIEWS, "samples": DEFAULT_SAMPLES,
-              "guidance": GUIDANCE_BY_TYPE if args.guidance is None else args.guidance,
+              "guidance": guidance_by_type() if args.guidance is None else args.guidance,
               "ratio": overall, "target": TARGET, "passed": overall >= TARGET, "per_pair": per_pair,
               "median_psnr": float(np.median([p["psnr"] for o in objects for p in o["prompts"]])),
               "objects": objects}

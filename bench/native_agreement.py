@@ -1,7 +1,7 @@
 """The native node graph against the exact OSL graph, both in Cycles on the CPU: FLIP and time per case.
 
 For each of Types 0-5 (several drawn materials) and each lobe alone, the cases of
-bench/agreement_cases.py are rendered on the preview ball by one Blender child
+support/agreement_cases.py are rendered on the preview ball by one Blender child
 process (bench/native_agreement_cycles.py), once with Cycles reading the OSL
 Script node (OSL shading) and once reading the native group (SVM), same scene,
 same samples, one thread. Both are tone mapped with AgX and compared with
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.agreement_cases import Case, cases
+from support.agreement_cases import Case, cases
 from bench.common import FLIP_CONVENTION, REPO, add_out_argument, pyplot, run_python, save_chart, write_report
 from bench.native_agreement_cycles import CPU_CONFIGS, FRAMES
 from richmat_addon.core.folder_io import read_exr

@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from bench.agreement_cases import Case
+from support.agreement_cases import Case
 from richmat_addon.core.preview import PreviewScene
 
 if TYPE_CHECKING:

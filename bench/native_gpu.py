@@ -1,6 +1,6 @@
 """On a GPU machine: each type in EEVEE and in Cycles on the GPU, against the Cycles CPU renders.
 
-The cases of bench/agreement_cases.py render on the preview ball in every
+The cases of support/agreement_cases.py render on the preview ball in every
 configuration the machine has (bench/native_agreement_cycles.py skips a missing
 device): Cycles on the CPU reading the OSL graph (the reference) and the native
 graph, Cycles with OptiX reading either, Cycles with CUDA, HIP, Metal or oneAPI
@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.agreement_cases import cases
+from support.agreement_cases import cases
 from bench.common import FLIP_CONVENTION, REPO, add_out_argument, pyplot, run_python, save_chart, write_report
 from bench.native_agreement import DEFAULT_PROBE, TARGET_MEAN, TARGET_WORST, labelled_sheet
 from bench.native_agreement_cycles import CONTROL, CPU_CONFIGS, FRAMES, read_json

@@ -1,6 +1,6 @@
 """The add-on's neural preview (OSL in Cycles) against the torch renderer, per type.
 
-For one material per type (bench/agreement_cases.py, latent from each decoder's
+For one material per type (support/agreement_cases.py, latent from each decoder's
 encoder), renders the preview ball with the torch renderer (``NeuralBsdf``, probe
 MIS) and with Cycles running the shader of ``richmat_addon/core/neural_osl.py``,
 same probe, scene and networks; reports mean LDR-FLIP (AgX, sRGB, 67 ppd) per
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from bench.agreement_cases import cases
+from support.agreement_cases import cases
 from bench.common import (FLIP_CONVENTION, add_out_argument, add_weights_argument, contact_sheet, run_python,
                           weights_folders, write_report)
 from richmat_addon.core.schema import CHANNEL_SLICES
@@ -63,8 +63,9 @@ cycles_builder.compile_script_node(node)
 tree.links.new(node.outputs["BSDF"], tree.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
 preview_scene.setup(scene, PreviewScene(resolution=job["resolution"]), Path(job["probe"]), mat, job["spp"])
 scene.cycles.shading_system = True
-node.inputs["probe"].default_value = job["probe"]
-node.inputs["samples"].default_value = job["directions"]
+if "probe" in node.inputs:  # the MLP's shader integrates its lobe from the probe; the hybrid's are closures
+    node.inputs["probe"].default_value = job["probe"]
+    node.inputs["samples"].default_value = job["directions"]
 res = job["resolution"]
 seconds = {}
 for case in job["cases"]:
@@ -142,7 +143,7 @@ def main() -> None:
     parser.add_argument("--resolution", type=int, default=48)
     parser.add_argument("--spp", type=int, default=1024, help="torch renderer samples per pixel")
     parser.add_argument("--cycles-spp", type=int, default=384)
-    parser.add_argument("--directions", type=int, default=8, help="shader directions per shading point")
+    parser.add_argument("--directions", type=int, default=8, help="the MLP shader's directions per shading point")
     add_out_argument(parser, "preview_agreement.json")
     args = parser.parse_args()
     folders = weights_folders(args)

@@ -47,7 +47,7 @@ from batch.options import DEFAULT_DECODER
 from batch.pipeline import SCENE_FILE
 from batch.sharding import shard_of
 from bench.common import REPO, add_out_argument, child_env, file_sha256, write_report
-from tests.conftest import SHARED_ASSETS
+from support.paths import SHARED_ASSETS
 
 SBATCH = REPO / "docs" / "slurm_render_dataset.sbatch"
 INSTALL = "apt-get install -y slurm-wlm munge"
@@ -68,7 +68,7 @@ BAD = {"truncated.glb": "prepare: import failed",
        "points.xyz": "unsupported format '.xyz'"}
 
 
-# ---- pure parts (tests/test_slurm_e2e.py) ----
+# ---- pure parts (bench/test_slurm_e2e.py) ----
 
 def missing_tools(path: str | None = None) -> list[str]:
     """The SLURM and munge commands not found on ``path`` (default: $PATH plus the sbin folders)."""

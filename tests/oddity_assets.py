@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from richmat_addon.core.gltf_materials import glb_bytes
-from tests.conftest import run_blender
+from support.blender_child import run_blender
 from tests.test_gltf_io import _Builder, base_color_image, cube_arrays, orm_image, png
 
 # The 12-byte KTX2 identifier and a little body: enough for anything that sniffs the format.
@@ -111,6 +111,17 @@ def write_uv_sets(folder: Path) -> Path:
     doc = _document(b, [{"primitives": [prim]}], [{"mesh": 0}], [material],
                     textures=[{"source": 0}, {"source": 1}], images=images)
     return _write_glb(folder / "uv_sets.glb", doc, b)
+
+
+def write_alpha_blend(folder: Path) -> Path:
+    """Two cubes: a pane with alpha blending (alphaMode BLEND, base colour alpha 0.4), an opaque frame."""
+    b = _Builder()
+    materials = [{"name": "pane", "alphaMode": "BLEND",
+                  "pbrMetallicRoughness": {"baseColorFactor": [0.2, 0.5, 0.9, 0.4]}},
+                 {"name": "frame", "pbrMetallicRoughness": {"baseColorFactor": [0.3, 0.3, 0.3, 1.0]}}]
+    meshes = [{"primitives": [_cube_primitive(b, material=0)]}, {"primitives": [_cube_primitive(b, material=1)]}]
+    nodes = [{"mesh": 0}, {"mesh": 1, "translation": [2, 0, 0]}]
+    return _write_glb(folder / "alpha_blend.glb", _document(b, meshes, nodes, materials), b)
 
 
 def _column() -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -5,7 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
+from support.extension import script
+from .test_addon_extension import extension_zip  # noqa: F401  (session fixture)
 
 ASSETS = ("WaterBottle", "CesiumMilkTruck", "FlightHelmet")
 

@@ -3,7 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
+from support.extension import script
+from .test_addon_extension import extension_zip  # noqa: F401  (session fixture)
 from .test_generator_generate import checkpoint  # noqa: F401  (tiny trained generator, module fixture)
 
 GENERATE = r'''

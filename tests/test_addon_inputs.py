@@ -6,7 +6,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
+from support.extension import script
+from .test_addon_extension import extension_zip  # noqa: F401  (session fixture)
 
 BAD_INPUTS = r'''
 def snapshot():
@@ -94,6 +95,23 @@ no_uvs()
 unwrap = run_op("unwrap_uvs")
 uplift_after_unwrap = run_op("uplift_material")
 
+# A stock Blender has no xatlas: Unwrap falls back to Smart UV Project, keeping the face selection.
+bpy.ops.wm.read_homefile(use_empty=True)
+no_uvs()
+mesh = bpy.context.active_object.data
+mesh.polygons[0].select = False
+selected = [p.select for p in mesh.polygons]
+sys.modules["xatlas"] = None  # import xatlas now raises ImportError
+smart = run_op("unwrap_uvs")
+del sys.modules["xatlas"]
+uv = np.array([d.vector[:] for d in mesh.uv_layers.active.uv]) if mesh.uv_layers.active else np.full((1, 2), np.nan)
+smart_uvs = dict(name=mesh.uv_layers.active.name if mesh.uv_layers.active else None,
+                 render=bool(mesh.uv_layers.active and mesh.uv_layers.active.active_render),
+                 lo=float(np.nanmin(uv)), hi=float(np.nanmax(uv)), finite=bool(np.isfinite(uv).all()),
+                 distinct=len(np.unique(uv.round(4), axis=0)),
+                 selection_kept=[p.select for p in mesh.polygons] == selected)
+uplift_after_smart = run_op("uplift_material")
+
 # Poll: no mesh selected greys every button out.
 bpy.ops.wm.read_homefile(use_empty=True)
 bpy.ops.object.empty_add()
@@ -101,6 +119,8 @@ polls = {name: getattr(bpy.ops.richmat, name).poll() for name in
          ("uplift_material", "bake_parameters", "fit_neural", "export_materialx", "switch_material")}
 print("RESULT " + json.dumps(dict(cases=out, unwrap=[list(unwrap[0]), unwrap[1]],
                                   uplift_after_unwrap=[list(uplift_after_unwrap[0]), uplift_after_unwrap[1]],
+                                  smart=[list(smart[0]), smart[1]], smart_uvs=smart_uvs,
+                                  uplift_after_smart=[list(uplift_after_smart[0]), uplift_after_smart[1]],
                                   polls=polls)))
 '''
 
@@ -125,6 +145,13 @@ def test_every_bad_input_is_reported_and_changes_nothing(blender_run, extension_
         assert unchanged, name
     assert result["unwrap"][0] == ["FINISHED"], result["unwrap"]
     assert result["uplift_after_unwrap"][0] == ["FINISHED"], result["uplift_after_unwrap"]
+    # without xatlas: Smart UV Project's map, in the unit square, active for rendering; uplift then works
+    assert result["smart"][0] == ["FINISHED"], result["smart"]
+    uvs = result["smart_uvs"]
+    assert uvs["name"] == "richmat_uv" and uvs["render"] and uvs["finite"], uvs
+    assert -1e-4 <= uvs["lo"] and uvs["hi"] <= 1 + 1e-4 and uvs["distinct"] > 8, uvs
+    assert uvs["selection_kept"], uvs
+    assert result["uplift_after_smart"][0] == ["FINISHED"], result["uplift_after_smart"]
     assert not any(result["polls"].values()), result["polls"]
 
 

@@ -11,7 +11,8 @@ import pytest
 
 from richmat_addon.blender import neural_backend
 
-from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
+from support.extension import script
+from .test_addon_extension import extension_zip  # noqa: F401  (session fixture)
 
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED_WEIGHTS = REPO / "torch_models" / "neural" / "weights"

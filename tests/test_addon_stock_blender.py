@@ -18,7 +18,8 @@ from richmat_addon.core.neural_encoder import Encoder
 from richmat_addon.core.texel_vectors import read_vectors
 from torch_models.neural import weights
 
-from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
+from support.extension import script
+from .test_addon_extension import extension_zip  # noqa: F401  (session fixture)
 
 TORCH_PACKAGES = ("torch", "functorch")  # torch, torchgen, their dist-info, functorch
 

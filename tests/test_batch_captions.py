@@ -5,8 +5,8 @@ from collections import Counter
 from pathlib import Path
 
 from batch.assets import collect
-from richmat_addon.core.captions import caption, colour_name, enhancement_keywords, readable
-from richmat_addon.core.enhance import TYPE_MIX
+from richmat_addon.core.captions import article, caption, colour_name, enhancement_keywords, readable
+from richmat_addon.core.enhancement_types import TYPE_MIX
 from richmat_addon.core.enhancement_plan import asset_type, material_type
 
 
@@ -37,6 +37,20 @@ def test_caption_names_colours_materials_and_enhancement_strength() -> None:
     assert colour_name([0.0, 0.0, 0.0]) == "black" and colour_name([0.9, 0.02, 0.02]) == "red"
     assert readable("Red") == "red" and "red red" not in caption("Box", [
         {"name": "Red", "metallic": False, "mean_base_color": [0.8, 0.0, 0.0], "settings": {}}])
+
+
+def test_captions_read_as_english() -> None:
+    spoken = {"evo": "an", "bowl": "a", "apple": "an", "umbrella": "an", "unicorn": "a", "european": "a",
+              "one": "a", "hour": "an", "house": "a", "8": "an", "80": "an", "11": "an", "7": "a", "110": "a",
+              "fbx": "an", "sdf": "an", "mtl": "an", "tv": "a", "usb": "a"}
+    assert {word: article(word) for word in spoken} == spoken
+    grey = {"metallic": False, "mean_base_color": [0.2, 0.2, 0.2], "settings": {}}
+    metal = {**grey, "metallic": True}
+    body = caption("EvoBowl", [{**grey, "name": "BodyMaterial"}])
+    assert body == "an evo bowl: grey body material with moderate haze"
+    assert caption("8_ball", [{**metal, "name": "Steel"}]) == "an 8 ball: grey steel metal with moderate haze"
+    assert caption("cone_metal_2", [{**metal, "name": "metal"}]) == "a cone metal 2: grey metal with moderate haze"
+    assert caption("UnicornToy", []) == "a unicorn toy: no materials"
 
 
 def test_an_output_folder_inside_the_input_is_not_collected(tmp_path: Path) -> None:

@@ -27,7 +27,7 @@ from batch import ledger
 from richmat_addon.core import material_folder
 from richmat_addon.core.colour import srgb_to_linear
 from tests import oddity_assets as odd
-from tests.conftest import run_blender
+from support.blender_child import run_blender
 from tests.test_batch_render import check_intrinsics, decoder_folder
 from tests.test_gltf_io import base_color_image
 
@@ -85,7 +85,8 @@ def prepared(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, An
               "ktx2_only": odd.write_ktx2(inputs, fallback=False),
               "vertex_colours": odd.write_vertex_colours(inputs), "uv_sets": odd.write_uv_sets(inputs),
               "skinned": odd.write_skinned(inputs), "lights_cameras": odd.write_lights_cameras(inputs),
-              "huge_quads": odd.write_huge_obj(inputs, HUGE_CELLS), "missing_image": odd.write_missing_image(inputs)}
+              "huge_quads": odd.write_huge_obj(inputs, HUGE_CELLS), "missing_image": odd.write_missing_image(inputs),
+              "alpha_blend": odd.write_alpha_blend(inputs)}
     work = root / "work"
     work.mkdir()
     header = (f"ASSETS = {json.dumps({k: str(v) for k, v in assets.items()})}\nROOT = {str(work)!r}\n"
@@ -194,6 +195,16 @@ def test_skinned_and_animated_mesh_keeps_its_rest_pose_in_every_frame(prepared: 
     assert json.loads((folder / "manifest.json").read_text())["notes"][:2] == notes[:2]
     for frame in ("0000", "0001"):  # rendered positions stay in the normalised cube
         check_intrinsics(folder / "passes" / f"{frame}.exr")
+
+
+def test_alpha_blending_rendered_opaque_is_noted(prepared: dict[str, Any]) -> None:
+    result = prepared["alpha_blend"]
+    assert result["code"] == 0
+    record = result["asset.json"]
+    note = "'pane' has alpha blending (alpha 0.4): rendered opaque, the enhanced material has no alpha"
+    assert note in record["notes"]
+    materials = {m["name"]: m for m in record["materials"]}
+    assert materials["pane"]["notes"] == [note] and materials["frame"]["notes"] == []  # the opaque one: no note
 
 
 def test_lights_and_cameras_of_the_asset_are_ignored(prepared: dict[str, Any]) -> None:

@@ -61,6 +61,8 @@ else:
 FAKE_PYTHON = '''#!{python}
 import json, sys
 from pathlib import Path
+if sys.argv[1] == "-c":  # the orchestrator's check that this Python imports torch
+    sys.exit(0)
 opts = dict(zip(sys.argv[2::2], sys.argv[3::2]))
 (Path(opts["--work"]) / "fit.json").write_text(json.dumps({{"materials": {{}}}}))
 '''
@@ -329,3 +331,111 @@ def test_children_match_the_parent_blender_or_python(monkeypatch: pytest.MonkeyP
         "/opt/blender/blender", "-b", "-Y", "--factory-startup", "--python-exit-code", "1", "-P",
         str(inside.job_script), "--", "render", "--x"]
     assert inside.fit_job(["--work", "w"]) == ["/env/python", str(inside.fit_script), "--work", "w"]
+
+
+def test_fit_python_is_the_checkouts_venv_under_blender_or_a_clear_error(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from types import SimpleNamespace
+
+    from batch import pipeline
+
+    monkeypatch.delenv("RICHMAT_PYTHON", raising=False)
+    monkeypatch.setitem(sys.modules, "bpy", SimpleNamespace(app=SimpleNamespace(binary_path="/opt/blender/blender")))
+    venv = tmp_path / "venv" / "bin" / "python"
+    monkeypatch.setattr(pipeline, "VENV_PYTHON", venv)
+    with pytest.raises(ValueError, match=r"needs a Python with torch.*no --python, no \$RICHMAT_PYTHON.*make env"):
+        pipeline.default_commands(None, None)
+    venv.parent.mkdir(parents=True)
+    venv.symlink_to(sys.executable)
+    assert pipeline.default_commands(None, None).python == str(venv)
+    assert pipeline.default_commands(None, "/env/python").python == "/env/python"
+    # a Python without torch (isolated, no site-packages) is refused before any asset starts
+    bare = tmp_path / "bare-python"
+    bare.write_text(f"#!/bin/sh\nexec {sys.executable} -I -S \"$@\"\n")
+    bare.chmod(0o755)
+    with pytest.raises(ValueError, match="`import torch` fails.*No module named 'torch'"):
+        pipeline.check_fit_python(str(bare))
+    with pytest.raises(ValueError, match="cannot be run"):
+        pipeline.check_fit_python(str(tmp_path / "no-such-python"))
+    pipeline.check_fit_python(sys.executable)
+
+
+def test_device_and_its_graph_are_in_the_settings_hash(decoder: Path, tmp_path: Path) -> None:
+    from batch import options
+
+    def settings(*extra: str) -> options.Settings:
+        args = args_for(tmp_path, tmp_path / "out", decoder, *extra)
+        options.validate(args)
+        return options.settings_of(args)
+
+    cpu, optix, cuda = settings(), settings("--device", "OPTIX"), settings("--device", "CUDA")
+    assert (cpu.device, cpu.graph) == ("CPU", "osl") and (optix.device, optix.graph) == ("OPTIX", "osl")
+    assert (cuda.device, cuda.graph) == ("CUDA", "native")  # OSL runs only on the CPU and OptiX
+    assert settings("--device", "CPU", "--graph", "native").graph == "native"
+    assert len({cpu.hash(), optix.hash(), cuda.hash(), settings("--graph", "native").hash()}) == 4
+    for gpu in ("CUDA", "HIP", "METAL", "ONEAPI"):
+        with pytest.raises(ValueError, match="--graph osl renders only on CPU and OPTIX"):
+            settings("--device", gpu, "--graph", "osl")
+
+
+def test_input_files_the_farm_does_not_take_are_listed_with_why(tmp_path: Path, fakes: Commands, decoder: Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    inp = make_assets(tmp_path / "in", ["good.glb", "..name.glb", ".hidden/inside.glb", "sub/.DS_Store",
+                                        "paint.png", "points.xyz"])
+    out = tmp_path / "out"
+    assert run(args_for(inp, out, decoder), fakes) == 1  # points.xyz failed
+    by_source = {r["source"]: r for r in ledger_records(out)}
+    assert by_source["good.glb"]["status"] == "done"
+    xyz = by_source["points.xyz"]
+    assert xyz["status"] == "failed" and "unsupported format '.xyz'" in xyz["reason"]
+    ignored = {k: r["reason"] for k, r in by_source.items() if r["status"] == "ignored"}
+    assert set(ignored) == {"..name.glb", ".hidden/", "sub/.DS_Store", "paint.png"}
+    assert "starts with a dot" in ignored["..name.glb"] and "rename it" in ignored["..name.glb"]
+    assert "hidden folder" in ignored[".hidden/"] and "not searched" in ignored[".hidden/"]
+    assert "read by the asset that refers to it" in ignored["paint.png"]
+    err = capsys.readouterr().err
+    assert "ignored 4 (not assets)" in err and "IGNORED ..name.glb: the name starts with a dot" in err
+    assert "IGNORED 1 texture, buffer or material file(s)" in err and "FAILED points.xyz" in err
+
+
+def test_progress_is_a_plain_line_per_asset_without_tqdm(monkeypatch: pytest.MonkeyPatch) -> None:
+    import io
+
+    from batch import progress
+
+    monkeypatch.setitem(sys.modules, "tqdm", None)  # as in a stock Blender: `import tqdm` fails
+    assert isinstance(progress.progress(2, "shard 0000-of-0001"), progress.Lines)
+    stream = io.StringIO()
+    lines = progress.Lines(2, "shard 0000-of-0001", stream)
+    lines.step("done", "chair-0123456789")
+    lines.step("failed", "lamp-9876543210")
+    first, second = stream.getvalue().splitlines()
+    assert first.startswith("shard 0000-of-0001 [1/2] done chair-0123456789 (ETA ")
+    assert second.startswith("shard 0000-of-0001 [2/2] failed lamp-9876543210 (ETA 00:00:00")
+
+
+CRASHING_RUN = """
+import runpy, sys
+from batch import index
+def full_disk(output):
+    raise OSError(28, "No space left on device")
+index.write = full_disk  # the index is written after the assets: a crash of the run itself, not of an asset
+sys.argv = [sys.argv[0], "--", *sys.argv[1:]]  # as Blender passes them
+runpy.run_path({entry!r}, run_name="__main__")
+"""
+
+
+def test_a_crash_inside_the_entry_script_exits_non_zero_with_a_ledger_line(tmp_path: Path, fakes: Commands,
+                                                                           decoder: Path) -> None:
+    inp = make_assets(tmp_path / "in", ["good.glb"])
+    out = tmp_path / "out"
+    script = CRASHING_RUN.format(entry=str(REPO / "batch" / "render_dataset.py"))
+    proc = subprocess.run([sys.executable, "-c", script, "--input", str(inp), "--output", str(out), "--decoder",
+                           str(decoder), "--resolution", "8", "--blender", fakes.blender, "--python", fakes.python],
+                          capture_output=True, text=True, timeout=120, env=dict(os.environ, PYTHONPATH=str(REPO)))
+    assert proc.returncode == 70, proc.stderr[-2000:]
+    assert "Traceback" in proc.stderr and "No space left on device" in proc.stderr
+    records = ledger_records(out)
+    assert [r["status"] for r in records] == ["done", "aborted"]
+    assert records[-1]["reason"] == "the run crashed: OSError: [Errno 28] No space left on device"
+    assert records[-1]["asset_id"] is None and records[-1]["settings_hash"] == records[0]["settings_hash"]

@@ -23,37 +23,11 @@ from PIL import Image
 from batch import ledger
 from batch.options import DEFAULT_DECODER
 from richmat_addon.core import dataset_index, neural_folder
+from richmat_addon.core.enhancement_types import TYPES
+from support.batch_inputs import make_inputs
 from torch_models.dataset import BatchDataset
 
 REPO = Path(__file__).resolve().parents[1]
-
-CUBE_OBJ = """mtllib {mtl}
-v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1
-vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1
-usemtl painted
-f 1/1 4/4 3/3 2/2\nf 5/1 6/2 7/3 8/4\nf 1/1 2/2 6/3 5/4\nf 2/1 3/2 7/3 6/4\nf 3/1 4/2 8/3 7/4\nf 4/1 1/2 5/3 8/4
-"""
-TETRA_STL = """solid t
-facet normal 0 0 -1\n outer loop\n  vertex 0 0 0\n  vertex 0 1 0\n  vertex 1 0 0\n endloop\nendfacet
-facet normal 0 -1 0\n outer loop\n  vertex 0 0 0\n  vertex 1 0 0\n  vertex 0 0 1\n endloop\nendfacet
-facet normal -1 0 0\n outer loop\n  vertex 0 0 0\n  vertex 0 0 1\n  vertex 0 1 0\n endloop\nendfacet
-facet normal 1 1 1\n outer loop\n  vertex 1 0 0\n  vertex 0 1 0\n  vertex 0 0 1\n endloop\nendfacet
-endsolid t
-"""
-TRAP_BLEND = """
-import bpy, sys
-marker = sys.argv[-2]
-bpy.ops.wm.read_factory_settings(use_empty=True)
-bpy.ops.mesh.primitive_cube_add()
-cube = bpy.context.active_object
-text = bpy.data.texts.new("autorun.py")
-text.from_string(f"import pathlib; pathlib.Path({marker + '.text'!r}).touch()")
-text.use_module = True
-fcurve = cube.driver_add("location", 0)
-fcurve.driver.type = "SCRIPTED"
-fcurve.driver.expression = f"__import__('pathlib').Path({marker + '.driver'!r}).touch() or 0.0"
-bpy.ops.wm.save_as_mainfile(filepath=sys.argv[-1])
-"""
 
 
 def decoder_folder() -> Path:
@@ -61,26 +35,6 @@ def decoder_folder() -> Path:
     missing = [name for name in ("weights.safetensors", "state.json") if not (folder / name).is_file()]
     assert not missing, f"the decoder folder {folder} lacks {missing} (the shipped one is {DEFAULT_DECODER})"
     return folder
-
-
-def make_inputs(folder: Path, marker: Path, env: dict[str, str]) -> None:
-    folder.mkdir()
-    rng = np.random.default_rng(0)
-    Image.fromarray(rng.integers(0, 255, (1024, 1024, 3), np.uint8)).save(folder / "huge.png")
-    (folder / "cube.mtl").write_text("newmtl painted\nKd 0.8 0.3 0.1\nmap_Kd huge.png\nPr 0.5\nmap_Pr gone.png\n")
-    (folder / "painted cube ünï.obj").write_text(CUBE_OBJ.format(mtl="cube.mtl"))
-    (folder / "no_uvs.stl").write_text(TETRA_STL)
-    script = folder.parent / "make_trap.py"
-    script.write_text(TRAP_BLEND)
-    subprocess.run([sys.executable, str(script), str(marker), str(folder / "trap.blend")], check=True,
-                   env=env, capture_output=True, timeout=120)
-    import trimesh
-
-    glb = trimesh.creation.box().export(file_type="glb")
-    (folder / "truncated.glb").write_bytes(glb[: len(glb) // 2])
-    (folder / "ascii.fbx").write_text('; FBX 7.4.0 project file\nFBXHeaderExtension:  {\n FBXHeaderVersion: 1003\n}\n')
-    (folder / "zero_faces.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
-    (folder / "points.xyz").write_text("0 0 0\n")
 
 
 def test_tiny_batch_renders_good_assets_and_reports_bad_ones(tmp_path: Path) -> None:
@@ -118,7 +72,7 @@ def test_tiny_batch_renders_good_assets_and_reports_bad_ones(tmp_path: Path) -> 
         for name in ("rgb/0000.png", "rgb/0001.png", "passes/0000.exr", "passes/0001.exr", "orbit.mp4",
                      "cameras.json", "caption.txt"):
             assert name in manifest["files"], (source, name)
-        assert manifest["enhancement_type"] in range(6) and manifest["caption"].startswith("a ")
+        assert manifest["enhancement_type"] in range(len(TYPES)) and manifest["caption"].startswith("a ")
         assert all(m["furnace"]["checked"] > 0 for m in manifest["fit"]["materials"].values())
         if source == "trap.blend":
             assert manifest["autoexec_fail"] is True
@@ -159,3 +113,21 @@ def check_intrinsics(path: Path) -> None:
     for name in ("latent_a", "latent_b"):
         assert np.abs(layers[name][covered][:, :3]).max() > 0 and np.abs(layers[name][~covered]).max() == 0
     return layers
+
+
+def test_a_missing_gpu_fails_the_run_at_once_with_the_reason_in_the_ledger(tmp_path: Path) -> None:
+    # a GPU this machine does not have: CUDA on a machine without NVIDIA's driver, else AMD's HIP
+    device = "HIP" if Path("/dev/nvidiactl").exists() else "CUDA"
+    inputs, out = tmp_path / "in", tmp_path / "out"
+    inputs.mkdir()
+    (inputs / "cube.stl").write_text(TETRA_STL)
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "blender_user"), PYTHONPATH=str(REPO))
+    proc = subprocess.run([sys.executable, str(REPO / "batch" / "render_dataset.py"), "--input", str(inputs),
+                           "--output", str(out), "--device", device, "--decoder", str(decoder_folder())],
+                          env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 1, proc.stderr[-3000:]
+    (record,) = [r for path in (out / "_ledger").glob("*.jsonl") for r in ledger.read(path)]
+    assert record["status"] == "aborted" and record["asset_id"] is None
+    assert record["reason"].startswith(f"--device {device}: Cycles finds no {device} device on this machine")
+    assert record["reason"].endswith("not rendering on the CPU instead")
+    assert sorted(p.name for p in out.iterdir()) == ["_ledger"]  # no asset was started

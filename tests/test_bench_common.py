@@ -1,11 +1,11 @@
 """bench/ is one package: benches import each other as ``bench.X`` and write their reports
-through ``bench.common``, whose provenance passes the rules the docs' citations are held to."""
+through ``support.reports``, whose provenance passes the rules the docs' citations are held to."""
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
-from bench.common import write_report
+from support.reports import write_report
 from tests.test_docs_reports import problems
 from torch_models.generator.generate import SHIPPED as GENERATOR
 from torch_models.neural import weights

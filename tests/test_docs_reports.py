@@ -10,15 +10,24 @@ one among them) unless the citing line (the line holding the link) names the wei
 the first 8 hex digits of the report's decoder sha256, or "earlier decoder" /
 "previous decoder". A report with no provenance at all is accepted only where the
 citing line says "no provenance recorded".
+
+The numbers the documents quote are checked against their reports' keys: the table in
+tests/doc_numbers.py, one row per number (and a row for each number measured once by hand,
+which the document must say).
 """
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 import re
+import statistics
 from pathlib import Path
+from typing import Any
 
 import pytest
+
+from .doc_numbers import ROWS, DocNumber
 
 REPO = Path(__file__).resolve().parents[1]
 REPORTS = REPO / "docs" / "reports"
@@ -149,3 +158,107 @@ def test_link_parsing(tmp_path):
     doc.write_text("intro\n[a long\nlink text](reports/x.json) and ![c](reports/x.png)\n[n](other.md)\n")
     found = [(n, t.name) for n, _, t in citations(doc)]
     assert found == [(3, "x.json"), (3, "x.png")]
+
+
+# The numbers: each quoted number equals its report's key at the quote's rounding.
+BRACED = re.compile(r"\{([^{}]+)\}")
+REDUCE = {"min": min, "max": max, "mean": statistics.fmean}
+BY_HAND = "by hand"
+
+
+def collapsed(text: str) -> str:
+    return " ".join(text.split())
+
+
+def lookup(report: Any, key: str) -> float:
+    """The number ``key`` names in ``report`` (tests/doc_numbers.py says how keys are written)."""
+    op, _, path = key.rpartition(":")
+    found = [report]
+    for part in path.split("/"):
+        if part == "*":
+            found = [v for item in found for v in (item.values() if isinstance(item, dict) else item)]
+        else:
+            found = [item[int(part)] if isinstance(item, list) else item[part] for item in found]
+    if op in REDUCE:
+        return float(REDUCE[op](found))
+    (value,) = found
+    if op == "len":
+        return float(len(value))
+    return math.sqrt(value) if op == "sqrt" else float(value)
+
+
+def number_problems(row: DocNumber, text: str, report: Any | None) -> list[str]:
+    """What is wrong with ``row`` against the document's ``text`` and its ``report`` (None: by hand)."""
+    where = f"{row.doc}: {row.quote!r}"
+    out = []
+    if collapsed(BRACED.sub(r"\1", row.quote)) not in collapsed(text):
+        out.append(f"{where}: not in the document (a changed number must change in its report too)")
+    braced = BRACED.findall(row.quote)
+    if row.report is None:
+        if braced or BY_HAND not in row.quote:
+            out.append(f"{where}: a by-hand row quotes no braced number and says {BY_HAND!r}")
+        return out
+    if len(braced) != 1:
+        return out + [f"{where}: quotes {len(braced)} braced numbers, not one"]
+    quoted = braced[0].replace(" ", "").replace(",", "")
+    decimals = len(quoted.partition(".")[2])
+    shown = f"{lookup(report, row.key) * row.scale:.{decimals}f}"
+    if float(shown) != float(quoted):
+        out.append(f"{where}: {row.report} {row.key} gives {shown}")
+    return out
+
+
+def test_quoted_numbers_match_their_reports():
+    texts = {doc: (REPO / doc).read_text() for doc in {r.doc for r in ROWS}}
+    reports = {r.report: json.loads((REPO / r.report).read_text()) for r in ROWS if r.report}
+    bad = [p for r in ROWS for p in number_problems(r, texts[r.doc], reports.get(r.report))]
+    assert not bad, "numbers that drifted from their reports:\n" + "\n".join(bad)
+
+
+def test_every_headline_row_has_its_numbers_checked():
+    text = (REPO / "README.md").read_text().partition("## Headline numbers")[2].partition("\n## ")[0]
+    table = [ln for ln in text.splitlines() if ln.startswith("| ") and not ln.startswith("| what ")]
+    quotes = [collapsed(BRACED.sub(r"\1", r.quote)) for r in ROWS if r.doc == "README.md"]
+    unchecked = [ln[:80] for ln in table if not any(q in collapsed(ln) for q in quotes)]
+    assert len(table) >= 10 and not unchecked, unchecked
+
+
+def test_every_note_citing_reports_has_its_numbers_checked():
+    """history.md records superseded numbers; every other note that cites a JSON report has rows."""
+    citing = {doc.relative_to(REPO).as_posix() for doc, *_, t in all_citations() if t.suffix == ".json"}
+    missing = sorted(citing - {r.doc for r in ROWS} - {"docs/history.md"})
+    assert not missing, missing
+
+
+REPORT = {"runs": [{"flip": 0.0132}, {"flip": 0.0151}], "n": 20}
+
+
+@pytest.mark.parametrize("doc, quote, key, scale, drifted", [
+    ("worst FLIP 0.013 here", "worst FLIP {0.013}", "runs/0/flip", 1, False),
+    ("worst FLIP 0.014 here", "worst FLIP {0.014}", "runs/0/flip", 1, True),  # the text moved, the report did not
+    ("worst FLIP 0.013 here", "worst FLIP {0.0132}", "runs/0/flip", 1, True),  # quote differs from the text
+    ("worst FLIP 1.3 %", "worst FLIP {1.3} %", "runs/0/flip", 100, False),
+    ("from 0.013 to 0.015", "from 0.013 to {0.015}", "max:runs/*/flip", 1, False),
+    ("from 0.013 to 0.016", "from 0.013 to {0.016}", "max:runs/*/flip", 1, True),
+    ("all 20 cases", "all {20} cases", "n", 1, False),
+    ("2 runs", "{2} runs", "len:runs", 1, False),
+    ("1,024\n texels", "{1,024} texels", "n", 51.2, False),
+])
+def test_a_drifted_number_fails(doc, quote, key, scale, drifted):
+    row = DocNumber("note.md", quote, "r.json", key, scale)
+    assert bool(number_problems(row, doc, REPORT)) == drifted, number_problems(row, doc, REPORT)
+
+
+def test_a_drifted_report_fails_a_real_row():
+    """The README's agreement number, against its report re-run to a worse worst case."""
+    row = next(r for r in ROWS if r.report and r.report.endswith("/agreement.json") and r.key == "worst_flip")
+    report = json.loads((REPO / row.report).read_text())
+    text = (REPO / row.doc).read_text()
+    assert not number_problems(row, text, report)
+    report["worst_flip"] += 0.001
+    assert number_problems(row, text, report) == [f"{row.doc}: {row.quote!r}: {row.report} worst_flip gives 0.014"]
+
+
+def test_by_hand_rows_say_so():
+    assert not number_problems(DocNumber("n.md", "5 s (measured by hand)", None), "took 5 s (measured by hand).", None)
+    assert number_problems(DocNumber("n.md", "5 s", None), "took 5 s.", None)

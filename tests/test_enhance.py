@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from richmat_addon.core import masks
-from richmat_addon.core.enhance import TYPE_MIX, enhance, resolve_type
+from richmat_addon.core.enhance import enhance, resolve_type
+from richmat_addon.core.enhancement_types import TYPE_MIX, TYPES
 from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.schema import PARAM_BY_NAME
 
@@ -43,7 +44,7 @@ def pbr(base=(0.5, 0.4, 0.3), rough=0.5, metal=0.0, size=None, name="m"):
     return PbrInputs(name, m(base, 3), m(rough, 1), m(metal, 1))
 
 
-@pytest.mark.parametrize("type_", range(6))
+@pytest.mark.parametrize("type_", [t.index for t in TYPES])
 def test_constants_stay_constant_and_in_range(type_):
     mat = enhance(pbr(), type_, seed=1)
     for name, m in mat.params.items():

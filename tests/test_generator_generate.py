@@ -254,7 +254,9 @@ def test_a_materials_latent_texture_follows_its_maps_up_to_the_guards_budget():
 
 
 def test_guidance_defaults_to_the_prompts_types_and_an_explicit_value_wins(checkpoint, monkeypatch):
-    import torch_models.generator as generator
+    from dataclasses import replace
+
+    from richmat_addon.core import enhancement_types
     from torch_models.generator import generate as gen
     from torch_models.generator.mesh_input import load_mesh
 
@@ -262,7 +264,9 @@ def test_guidance_defaults_to_the_prompts_types_and_an_explicit_value_wins(check
     used = []
     monkeypatch.setattr(model, "sample", lambda cond, steps, seed, guidance, *a: used.append(guidance)
                         or torch.zeros_like(cond.prior))
-    monkeypatch.setattr(generator, "GUIDANCE_BY_TYPE", {0: 2.0, 1: 1.25})
+    table = {0: 2.0, 1: 1.25}
+    monkeypatch.setattr(enhancement_types, "TYPES", tuple(replace(t, guidance=table.get(t.index, t.guidance))
+                                                          for t in enhancement_types.TYPES))
     inp = load_mesh(GLB)
     run = lambda prompt, **kw: gen.generate(inp, prompt, model, cfg, steps=1, views=2, texture_size=16,
                                             guard_energy=False, **kw)
@@ -274,6 +278,7 @@ def test_guidance_defaults_to_the_prompts_types_and_an_explicit_value_wins(check
 
 def test_every_enhancement_type_has_a_guidance():
     from richmat_addon.core.enhancement_types import TYPES
-    from torch_models.generator import GUIDANCE_BY_TYPE
+    from torch_models.generator import guidance_by_type
 
-    assert sorted(GUIDANCE_BY_TYPE) == [t.index for t in TYPES] and min(GUIDANCE_BY_TYPE.values()) >= 1.0
+    guidance = guidance_by_type()
+    assert sorted(guidance) == [t.index for t in TYPES] and min(guidance.values()) >= 1.0

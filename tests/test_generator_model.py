@@ -1,12 +1,17 @@
 """EDM preconditioning, uncertainty-weighted loss, Heun sampler and the multi-view DiT on tiny sizes."""
+import json
 import math
+from dataclasses import replace
 
 import pytest
 import torch
+from safetensors.torch import save_file
 
+from richmat_addon.core.enhancement_types import TYPES
 from torch_models.generator import edm
-from torch_models.generator.dit import (CONDITION_CHANNELS, LATENT_CHANNELS, NULL_TYPE, Conditions, DitConfig,
-                                        LatentGenerator)
+from torch_models.generator.dit import CONDITION_CHANNELS, LATENT_CHANNELS, Conditions, DitConfig, LatentGenerator
+from torch_models.generator.generate import load_generator
+from torch_models.generator.train import GeneratorTrainConfig
 from torch_models.generator.views import PBR_CHANNELS, PRIOR_CHANNELS
 
 torch.set_num_threads(1)
@@ -93,11 +98,31 @@ def test_model_shapes_and_background_is_zero():
 
 
 def test_prompt_dropout_and_unconditional_input():
+    model = LatentGenerator(TINY)
+    assert model.null_type == len(TYPES) and model.net.type_embed.num_embeddings == len(TYPES) + 1
     cond = _conditions(b=2)
-    dropped = cond.drop(torch.tensor([True, False]))
+    dropped = cond.drop(torch.tensor([True, False]), model.null_type)
     assert torch.equal(dropped.text[0], cond.text[0]) and float(dropped.text[1].abs().sum()) == 0.0
-    assert dropped.type.tolist() == [1, NULL_TYPE]
-    assert cond.unconditional().type.tolist() == [NULL_TYPE, NULL_TYPE]
+    assert dropped.type.tolist() == [1, model.null_type]
+    assert cond.unconditional(model.null_type).type.tolist() == [model.null_type, model.null_type]
+
+
+def test_a_checkpoint_keeps_its_type_count_and_refuses_types_it_never_saw(tmp_path):
+    """The unconditional token is one past the checkpoint's types, whatever today's table holds: a
+    checkpoint of two types (its state.json silent on the count, as before ``DitConfig.types``)
+    loads with two, and Type 2, its unconditional token, is refused as a prompt's type."""
+    trained = LatentGenerator(replace(TINY, types=2))
+    save_file(trained.state_dict(), str(tmp_path / "weights.safetensors"))
+    config = GeneratorTrainConfig(model=TINY).to_dict()
+    del config["model"]["types"]
+    (tmp_path / "state.json").write_text(json.dumps({"config": config}))
+    model, cfg = load_generator(tmp_path)
+    assert cfg.model.types == 2 and model.null_type == 2
+    cond = _conditions(b=2)
+    assert model.sample(cond, steps=1, seed=0).shape == (2, 2, LATENT_CHANNELS, TINY.size, TINY.size)
+    cond.type = torch.tensor([1, 2])
+    with pytest.raises(ValueError, match="trained on enhancement types 0-1"):
+        model.sample(cond, steps=1, seed=0)
 
 
 def test_dropping_the_pbr_maps_swaps_in_the_prior_made_without_them():

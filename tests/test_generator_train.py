@@ -6,6 +6,7 @@ import torch
 from PIL import Image
 from safetensors.torch import load_file
 
+from richmat_addon.core.enhancement_types import TYPES
 from torch_models.cli import main
 from torch_models.generator import corpus, procedural
 from torch_models.generator.train import GeneratorTrainConfig, GeneratorTrainer, learning_rate, load_corpus
@@ -34,7 +35,7 @@ def test_corpus_files_hold_the_documented_tensors(tiny_config):
     s = corpus.Sample.load(files[0])
     assert s.target.shape == (2, 6, 16, 16) and s.conditions.shape == (2, 19, 16, 16)
     assert s.unknown_prior.shape == (2, 6, 16, 16)
-    assert s.text.shape == (384,) and 0 <= s.type <= 5 and s.caption.startswith("a ")
+    assert s.text.shape == (384,) and s.type in range(len(TYPES)) and s.caption.startswith("a ")
     cover = s.conditions[:, -1] > 0
     assert 0 < cover.float().mean() < 1
     assert float(s.target.abs().amax(1)[~cover].max()) == 0.0  # background is empty

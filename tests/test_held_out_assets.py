@@ -6,9 +6,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.held_out_assets import real_held_out
 from richmat_addon.core import neural_folder
 from richmat_addon.core.folder_io import read_exr
+from support.held_out_assets import real_held_out
 from torch_models.generator.train import GeneratorTrainConfig
 
 DATA = Path(__file__).parent / "data" / "generator_batch"
@@ -35,7 +35,7 @@ def config(batch: Path, held_out: list[str]) -> GeneratorTrainConfig:
 def test_a_held_out_asset_carries_batchs_caption_and_fitted_latents(batch):
     [obj] = real_held_out(config(batch, [ASSET]), models=batch)
     assert obj.asset_id == ASSET and obj.type == 1
-    assert obj.prompt == "a cone metal 2: white metal metal with heavy haze, light dust"
+    assert obj.prompt == "a cone metal 2: white metal with heavy haze, light dust"
     assert [m.name for m in obj.inp.materials] == ["metal"]
     neural = DATA / "cone_metal_2" / "materials" / "metal" / "neural"
     fitted = np.concatenate([read_exr(neural / f"latent_{k}.exr") for k in (0, 1)], -1)

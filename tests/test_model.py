@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from richmat_addon.core import graph as g
+from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.schema import PARAMS
 from torch_models.brdf.model import LayeredBsdf, luminance
 from tests.chi2 import chi2_test, sidak_threshold
@@ -52,8 +53,8 @@ def directional_albedo(bsdf: LayeredBsdf, cos_i: float, n: int = 128) -> torch.T
     return (f * (wmu[:, None] * wphi[None, :])[..., None]).sum((0, 1))
 
 
-FURNACE_GRID = [(t, r, m) for t in range(6) for r in (0.02, 0.15, 0.5, 1.0)
-                for m in ((0.0,) if t >= 4 else (0.0, 0.5, 1.0))]  # 4 and 5: dielectric only
+FURNACE_GRID = [(t.index, r, m) for t in TYPES for r in (0.02, 0.15, 0.5, 1.0)
+                for m in ((0.0,) if t.dielectric_only else (0.0, 0.5, 1.0))]
 
 
 @pytest.mark.parametrize("type_,roughness,metalness", FURNACE_GRID)

@@ -12,10 +12,12 @@ from batch import options
 from richmat_addon.core import albedo_fits, graph
 from richmat_addon.core.albedo_fit_data import DIELECTRIC, SHEEN
 from richmat_addon.core.enhance import enhance
+from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
 from torch_models.brdf import lobes
 
-from .test_addon_extension import extension_zip, script  # noqa: F401  (session fixture)
+from support.extension import script
+from .test_addon_extension import extension_zip  # noqa: F401  (session fixture)
 from .test_osl import BLENDER_PRELUDE, save_materials
 
 REPO = Path(__file__).resolve().parents[1]
@@ -151,7 +153,7 @@ def test_each_type_builds_its_groups_and_renders_like_osl(blender_run, tmp_path:
     from torch_models.render.flip import flip_map
     from torch_models.render.tonemap import agx
 
-    materials = {m.name: m for m in [type_material(t) for t in range(6)] + [type_material(2, metal=True)]}
+    materials = {m.name: m for m in [type_material(t.index) for t in TYPES] + [type_material(2, metal=True)]}
     npz = save_materials(tmp_path / "materials.npz", materials)
     result = blender_run(f"from pathlib import Path\nNPZ, NAMES, PROBE = {npz!r}, {list(materials)!r}, "
                          f"Path({str(PROBE)!r})\nSIZE, SAMPLES = 24, 16\n" + PER_TYPE)
@@ -179,7 +181,7 @@ def test_the_farm_takes_the_graph_and_hashes_it():
     parser = options.build_parser()
     base = ["--input", "in", "--output", "out"]
     osl, native = (options.settings_of(parser.parse_args(base + ["--graph", g])) for g in ("osl", "native"))
-    assert parser.parse_args(base).graph == "osl"
+    assert options.settings_of(parser.parse_args(base)).graph == "osl"  # on the default device, the CPU
     assert native.graph == "native" and native.hash() != osl.hash()  # the beauty frames differ
     with pytest.raises(SystemExit):
         parser.parse_args(base + ["--graph", "svm"])
@@ -218,10 +220,14 @@ enhanced = obj.active_material
 after = (scene.render.engine, scene.cycles.device, scene.cycles.shading_system)
 out = {"uplift": list(res), "engine": [list(before), list(after)], "graphs": [builder.cycles_graph(enhanced)]}
 native = render(24, 8)
+prefs = bpy.context.preferences.addons["cycles"].preferences
+prefs.compute_device_type, scene.cycles.device = "CUDA", "GPU"  # a GPU that cannot run OSL: refused
 res, err = run_op("toggle_cycles_graph")
-out["refused"] = [sorted(res), err]
-scene.cycles.shading_system = True
+out["refused"] = [sorted(res), err, scene.cycles.shading_system]
+out["graphs"].append(builder.cycles_graph(enhanced))
+prefs.compute_device_type, scene.cycles.device = "NONE", "CPU"  # the CPU: the toggle turns OSL on itself
 out["toggled"] = list(run_op("toggle_cycles_graph")[0])
+out["osl_on"] = [scene.render.engine, scene.cycles.device, scene.cycles.shading_system]
 out["graphs"].append(builder.cycles_graph(enhanced))
 osl = render(24, 8)
 scene.cycles.shading_system = False  # OSL off again: the handler must not leave a black material
@@ -236,10 +242,12 @@ def test_uplift_keeps_the_engine_and_the_toggle_never_leaves_black(blender_run, 
     result = blender_run(script(TOGGLE, extension_zip))
     assert result["uplift"] == ["FINISHED"]
     assert result["engine"][0] == result["engine"][1] == ["CYCLES", "CPU", False]
-    # Cycles without OSL: native; OSL refused until it is on; then OSL; OSL off again: native.
-    assert result["graphs"] == ["native", "osl", "native"]
-    assert result["refused"][0] == ["CANCELLED"] and "Open Shading Language" in result["refused"][1]
-    assert result["toggled"] == ["FINISHED"]
+    # Cycles without OSL: native; refused on CUDA (naming the switch, nothing changed); on the CPU the
+    # toggle turns OSL on (engine and device kept) and Cycles reads OSL; OSL off again: native.
+    assert result["graphs"] == ["native", "native", "osl", "native"]
+    assert result["refused"][0] == ["CANCELLED"] and result["refused"][2] is False
+    assert "CUDA" in result["refused"][1] and "Device to CPU" in result["refused"][1]
+    assert result["toggled"] == ["FINISHED"] and result["osl_on"] == ["CYCLES", "CPU", True]
     native, osl = result["means"]
     assert native > 0.01 and osl > 0.01 and abs(native - osl) < 0.1 * osl
 

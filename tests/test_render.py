@@ -183,13 +183,13 @@ def test_agx_matches_blender(blender_run, tmp_path: Path) -> None:
 
 def test_ball_agrees_with_cycles(blender_run, tmp_path: Path, env: EnvMap) -> None:
     """A small, low-sample version of bench/agreement.py: one coated material."""
-    from bench.agreement_cases import cases
+    from support.agreement_cases import cases
 
     case = next(c for c in cases(7, 1, 0) if c.name.startswith("type3"))
     blender_run(f"""
         import bpy, json
         from pathlib import Path
-        from bench.agreement_cases import Case
+        from support.agreement_cases import Case
         from richmat_addon.core.preview import PreviewScene
         from richmat_addon.blender import cycles_builder, preview_scene
         case = Case(**json.loads({json.dumps(asdict(case))!r}))

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import torch
 
-from bench import calibrate_sheen as cal
+from support import sheen_measurement
 from torch_models.brdf import lobes, tables
 
 
@@ -25,12 +25,12 @@ def _measure(blender_run, folder: Path, roughness: list[float], suns: np.ndarray
     blender_run(f"""
         import runpy, sys
         sys.argv = ["sheen_cycles", {str(job)!r}]
-        runpy.run_module("bench.sheen_cycles", run_name="__main__")
+        runpy.run_module("support.sheen_cycles", run_name="__main__")
     """)
     import OpenImageIO as oiio
 
     images = [oiio.ImageBuf(str(folder / f"sun_{k}.exr")).get_pixels(oiio.FLOAT)[..., 0] for k in range(len(suns))]
-    return cal.samples(images, json.loads((folder / "layout.json").read_text()), suns)
+    return sheen_measurement.samples(images, json.loads((folder / "layout.json").read_text()), suns)
 
 
 def test_sheen_matches_cycles_measurement(blender_run, tmp_path: Path) -> None:
@@ -49,11 +49,11 @@ def test_sheen_matches_cycles_measurement(blender_run, tmp_path: Path) -> None:
     sheen = ~diffuse
     n = data["n"][sheen]
     view = torch.tensor([[0.0, -1.0, 0.0]], dtype=torch.float64).expand(len(n), 3)
-    wi, wo = cal.to_shading(n, view).float(), cal.to_shading(n, data["d"][sheen]).float()
+    wi, wo = sheen_measurement.to_shading(n, view).float(), sheen_measurement.to_shading(n, data["d"][sheen]).float()
     r = torch.tensor(roughness)[data["sphere"][sheen]][:, None]
     measured = data["value"][sheen].float() / strength
     ours = lobes.sheen_eval(wi, wo, r).squeeze(-1)
-    hill = cal.model(tables.hill_sheen_ltc(), wi.double(), wo.double(), r.double()).float()
+    hill = sheen_measurement.model(tables.hill_sheen_ltc(), wi.double(), wo.double(), r.double()).float()
     lit = measured > 1e-3
     err_ours = ((ours - measured).abs()[lit] / measured[lit]).median()
     err_hill = ((hill - measured).abs()[lit] / measured[lit]).median()

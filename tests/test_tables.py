@@ -8,6 +8,7 @@ import pytest
 import numpy as np
 import torch
 
+from richmat_addon.core.sheen_table import sheen_table
 from torch_models.brdf import ggx, tables
 from torch_models.brdf.frame import cos_theta, reflect
 from torch_models.brdf.fresnel import f0_from_ior, fresnel_dielectric
@@ -145,7 +146,7 @@ def test_sheen_table_is_the_calibrated_file_read_bilinearly() -> None:
     within the documented distance of Hill's fits where it was measured (mu >= 0.2) and
     sheen is visible (R > 0.01)."""
     t = tables.table("sheen_ltc", torch.device("cpu"), F64)
-    assert torch.equal(t, torch.from_numpy(np.load(tables.SHEEN_TABLE_FILE)).to(F64))
+    assert torch.equal(t, torch.from_numpy(sheen_table()).to(F64))
     node = tables.sheen_ltc(torch.tensor(9 / 31, dtype=F64), torch.tensor(19 / 31, dtype=F64))
     assert torch.allclose(torch.stack(node), t[:, 19, 9])
     hill = tables.hill_sheen_ltc()

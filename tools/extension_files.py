@@ -3,7 +3,7 @@
 Modules that only the farm and the torch side import (the glTF readers, the
 caption vocabulary, ...) stay in the repository, out of the zip a user
 installs. ``make extension`` runs ``python tools/extension_files.py DEST`` to
-copy the modules under DEST, keeping their paths inside the package.
+copy the modules and the data they read under DEST, keeping their paths inside the package.
 """
 from __future__ import annotations
 
@@ -29,8 +29,14 @@ def addon_modules(root: Path = REPO) -> list[Path]:
                   if name == PACKAGE or name.startswith(PACKAGE + "."))
 
 
+def addon_data(root: Path = REPO) -> list[Path]:
+    """The data files the modules read (``core/data``: the sheen table of the neural preview), relative
+    to the package folder."""
+    return sorted(p.relative_to(root / PACKAGE) for p in (root / PACKAGE / "core" / "data").iterdir() if p.is_file())
+
+
 def copy_modules(dest: Path) -> None:
-    for rel in addon_modules():
+    for rel in addon_modules() + addon_data():
         (dest / rel).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(REPO / PACKAGE / rel, dest / rel)
 

@@ -9,9 +9,10 @@ six types are fitted as neural materials with the shipped decoder (one fit of
 all their distinct texel vectors; OUT/type_<k>/neural/: two latent EXRs and
 neural.json) and OUT/neural_vs_analytic.png shows analytic | neural | FLIP map
 per type, with the FLIPs in OUT/neural_vs_analytic.json. Last, the shipped
-generator makes neural materials for a held-out procedural mesh from prompts
-naming different enhancements (OUT/generated.png: per prompt its text, its
-type and two views; OUT/generated.json: the prompts, types, warnings, timings).
+generator makes neural materials for a red sphere (not in its training corpus)
+from prompts naming different enhancements (OUT/generated.png: per prompt the
+reference, the rules' uplift to the prompt's type, beside the generated
+material; OUT/generated.json: the prompts, types, warnings, timings).
 
 The default sizes finish in about two minutes on 2 cores; --full runs the
 larger version (a 256 px texture, 64 samples per pixel, 300 fit steps, the
@@ -199,53 +200,89 @@ def _select(bounded, rows):  # type: ignore[no-untyped-def]
                                                check.quadrature[rows], check.tolerance), bounded.refitted[rows])
 
 
-PREVIEW_SPP = 8  # samples per pixel of the generated views
+PREVIEW_SPP = 24  # samples per pixel of the prompt views: a coat's highlight or a dust film is not hidden in noise
 DEMO_PROMPT_ENDINGS = ("heavy haze, heavy dust", "light haze, glossy clearcoat",
                        "moderate haze, heavy fuzz, light subsurface scattering")
+# The prompts' object: a smooth sphere painted a rough dark red (linear base colour; sRGB 0.38, 0.12, 0.10).
+# On a coloured, dark, rough, curved base each enhancement shows: dust whitens it, a coat adds sharp
+# reflections over a deeper red, fuzz a pale velvet sheen. (A white base hides dust; a glossy one the coat,
+# and a flat one its reflections.)
+DEMO_PAINT = (0.12, 0.014, 0.01)
+DEMO_ROUGHNESS = 0.7
+
+
+def demo_sphere(texture_size: int):  # -> MeshInput
+    """The red sphere the prompts are written for; not in the generator's training corpus."""
+    import numpy as np
+    import trimesh
+
+    from richmat_addon.core.maps import ParamMap, PbrInputs
+
+    from .generator.mesh_input import MeshInput
+    from .generator.procedural import unwrapped
+
+    sphere = trimesh.creation.icosphere(subdivisions=4)
+    mesh = unwrapped(trimesh.Trimesh(0.5 * sphere.vertices, sphere.faces, process=False))
+    hw = (texture_size, texture_size)
+    pbr = PbrInputs("red paint", ParamMap(np.tile(np.float32(DEMO_PAINT), (*hw, 1))),
+                    ParamMap(np.full((*hw, 1), DEMO_ROUGHNESS, np.float32)), ParamMap(np.zeros((*hw, 1), np.float32)))
+    return MeshInput.from_pbr(mesh, pbr)
+
+
+def prompt_views(inp, prompts: list[str], seed: int, texture_size: int, view_size: int, spp: int,
+                 done=None) -> list[tuple]:  # inp: MeshInput; done: Callable[[], None] | None
+    """Per prompt: its generation, the view of its reference (the prior the generator starts from: the
+    rules' uplift of the object's material to the prompt's type, encoded) and the view of the generated
+    material, both display-referred (AgX) from the same camera with the same samples."""
+    import numpy as np
+    import torch
+
+    from .generator import generate as gen
+    from .render.tonemap import agx
+
+    torch.set_num_threads(1)  # small tensors: a second thread costs more in synchronisation than it saves
+    model, cfg = gen.load_generator()
+    rows = []
+    for prompt in prompts:
+        result = gen.generate(inp, prompt, model, cfg, seed, texture_size=texture_size)
+        views = [gen.preview(inp, latents, frames=1, resolution=view_size, spp=spp, energy_scale=scale)[0]
+                 for latents, scale in ((result.prior, None), (result.latents, result.energy_scale))]
+        rows.append((result, *np.split(agx(np.concatenate(views, 0)), 2, axis=0)))  # one tall image
+        if done is not None:
+            done()
+    return rows
 
 
 def generate_from_prompts(out: Path, seed: int, texture_size: int, view_size: int, progress: Progress) -> None:
-    """The paper's Fig. 8 on a mesh training never saw: one object, prompts naming different enhancements,
-    each row of generated.png under its prompt and the type the prompt chose.
+    """The paper's Fig. 8 on an object training never saw: one sphere, prompts naming different enhancements,
+    each row of generated.png its reference (the rules' uplift) beside the generated material, under the
+    prompt and the type it chose.
 
     The latents are ``texture_size`` texels a side (the shipped decoder needs no energy guard; with one
     that does, its time grows with the texels); the views are rendered at ``view_size``."""
     import json
 
-    import numpy as np
-    import torch
-
     from richmat_addon.core.enhancement_types import TYPES
 
     from .demo_render import captioned_row, save_sheet, to_u8
-    from .generator import corpus, procedural
-    from .generator import generate as gen
-    from .generator.mesh_input import MeshInput
-    from .render.tonemap import agx
 
     progress.start("generate from prompts")
-    torch.set_num_threads(1)  # small tensors: a second thread costs more in synchronisation than it saves
-    model, cfg = gen.load_generator()
-    index = next(i for i in range(1000) if corpus.is_held_out(f"proc-{cfg.corpus.seed}-{i:05d}"))
-    asset = procedural.make_asset(index, cfg.corpus.texture_size, cfg.corpus.seed)
-    inp = MeshInput.from_pbr(asset.mesh, asset.pbr)
-    subject = f"a {asset.shape}: {asset.pbr.name} {'metal' if asset.family == 'metal' else 'material'}"
+    inp = demo_sphere(texture_size)
+    prompts = [f"a sphere: red paint material with {ending}" for ending in DEMO_PROMPT_ENDINGS]
     rows, records = [], []
-    for ending in DEMO_PROMPT_ENDINGS:
-        prompt = f"{subject} with {ending}"
-        result = gen.generate(inp, prompt, model, cfg, seed, texture_size=texture_size)
-        frames = gen.preview(inp, result.latents, frames=2, resolution=view_size, spp=PREVIEW_SPP,
-                             energy_scale=result.energy_scale)
-        rows.append(captioned_row([to_u8(agx(np.concatenate(list(frames), 1)))],
-                                  [f'"{prompt}" -> Type {result.type}: {TYPES[result.type].label}']))
+    for prompt, (result, reference, generated) in zip(prompts, prompt_views(
+            inp, prompts, seed, texture_size, view_size, PREVIEW_SPP, lambda: progress.advance(1 / len(prompts)))):
+        label = f"Type {result.type}: {TYPES[result.type].label}"
+        rows.append(captioned_row([to_u8(reference), to_u8(generated)],
+                                  [f"reference: the rules' {label}", f'generated: "{prompt}"']))
         records.append({"prompt": prompt, "type": result.type, "warnings": result.warnings,
                         "seconds": result.seconds})
-        progress.advance(1 / len(DEMO_PROMPT_ENDINGS))
     out.mkdir(parents=True, exist_ok=True)
     png = save_sheet(rows, out / "generated.png")
-    (out / "generated.json").write_text(json.dumps({"asset": asset.asset_id, "held_out": True, "seed": seed,
-                                                     "rows": records}, indent=1))
-    progress.write(f"generated {len(rows)} materials for {asset.asset_id} (held out); wrote {png}")
+    (out / "generated.json").write_text(json.dumps({"object": "red paint sphere (not in the training corpus)",
+                                                     "base_color": DEMO_PAINT, "roughness": DEMO_ROUGHNESS,
+                                                     "seed": seed, "spp": PREVIEW_SPP, "rows": records}, indent=1))
+    progress.write(f"generated {len(rows)} materials for the red sphere; wrote {png}")
 
 
 # The stages' costs, as one-thread CPU seconds measured on this machine: the progress line's weights.
@@ -278,7 +315,7 @@ def expected_seconds(args: argparse.Namespace, vectors: int = 1000, bounded: boo
         stages["render neural vs analytic"] = 6 * ball * NEURAL_SECONDS_PER_SAMPLE
     if not args.no_generate:
         prompt = (PROMPT_SECONDS + (0.0 if bounded else args.generate_size ** 2 * GUARD_SECONDS_PER_TEXEL)
-                  + 2 * args.view_size ** 2 * PREVIEW_SPP * PREVIEW_SECONDS_PER_SAMPLE)
+                  + 2 * args.view_size ** 2 * PREVIEW_SPP * PREVIEW_SECONDS_PER_SAMPLE)  # reference and generated
         stages["generate from prompts"] = len(DEMO_PROMPT_ENDINGS) * prompt
     return stages
 

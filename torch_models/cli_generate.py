@@ -35,7 +35,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, GUIDANCE_BY_TYPE
+from .generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, guidance_by_type
 
 HELP = "generate the latent textures of a neural material for a mesh from a text prompt"
 RUN_RECORD = "generate.json"  # the run's record beside the per-material folders of a mesh with several materials
@@ -56,7 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"(default: {DEFAULT_SAMPLES}; each costs one more sampling run)")
     parser.add_argument("--guidance", type=float, default=None,
                         help="classifier-free guidance scale (default: per enhancement type, "
-                             + ", ".join(f"Type {t}: {g:g}" for t, g in GUIDANCE_BY_TYPE.items()) + ")")
+                             + ", ".join(f"Type {t}: {g:g}" for t, g in guidance_by_type().items()) + ")")
     parser.add_argument("--texture-size", type=int, default=DEFAULT_TEXTURE_SIZE,
                         help=f"largest side of a material's latent texture in texels; each follows its own "
                              f"maps' size up to this (default: {DEFAULT_TEXTURE_SIZE})")

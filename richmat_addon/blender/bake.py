@@ -10,6 +10,7 @@ the sampled ones. Each material bakes into its own folder, claimed by the materi
 from __future__ import annotations
 
 import json
+import tempfile
 from pathlib import Path
 
 import bpy
@@ -23,17 +24,27 @@ from .osl_env import prefer_blender_bundled_modules
 from .pbr_source import InputProblem
 
 FOLDER_SUFFIX = "_richmat"
+UNSAVED_FOLDER = "richmat_unsaved"  # under the system's temporary folder, for a .blend never saved
 
 
 def output_root(scene: bpy.types.Scene) -> Path:
-    """The chosen folder, or ``<blend name>_richmat`` beside the saved .blend file."""
+    """The chosen folder, or ``<blend name>_richmat`` beside the saved .blend file, or for an unsaved
+    file ``richmat_unsaved`` in the temporary folder (a first Bake never stops at a question of where)."""
     chosen = scene.richmat.output_dir
     if chosen:
         return Path(bpy.path.abspath(chosen)).resolve()
     if not bpy.data.filepath:
-        raise InputProblem("save the .blend file first, or choose an output folder in the Richmat panel")
+        return (Path(tempfile.gettempdir()) / UNSAVED_FOLDER).resolve()
     blend = Path(bpy.data.filepath)
     return (blend.parent / f"{blend.stem}{FOLDER_SUFFIX}").resolve()
+
+
+def unsaved_note(scene: bpy.types.Scene) -> str:
+    """What the report says when Bake wrote into the temporary folder: how to keep the maps."""
+    if scene.richmat.output_dir or bpy.data.filepath:
+        return ""
+    return ("; the .blend is not saved, so the maps went to the temporary folder: choose a Folder in the "
+            "Richmat panel (or save the file) and Bake again to keep them")
 
 
 def claim_folder(root: Path, material: bpy.types.Material) -> Path:
@@ -80,7 +91,8 @@ def bake(obj: bpy.types.Object, all_slots: bool, root: Path, relink: bool = True
     lines = []
     for p in plans:
         enhanced = p.original.richmat.enhanced
-        mat = uplift.enhance_slot(p, _requested(enhanced), enhanced.richmat.seed, max_size=None)
+        mat = uplift.enhance_slot(p, _requested(enhanced), enhanced.richmat.seed, None, enhanced.richmat.amount,
+                                  enhanced.richmat.auto_touch)
         mat.params.update(edited_constants(enhanced))
         folder = claim_folder(root, p.original)
         files = write_folder(folder, mat, p.original)
@@ -97,5 +109,5 @@ def bake(obj: bpy.types.Object, all_slots: bool, root: Path, relink: bool = True
 
 
 def _requested(enhanced: bpy.types.Material) -> str:
-    """The type uplift resolved: bake repeats it exactly (never re-draws Auto)."""
+    """The type uplift resolved: bake repeats it exactly (never re-draws Auto; its amount and touch too)."""
     return str(enhanced.richmat.type)

@@ -50,7 +50,6 @@ OUTPUT_NODE = "richmat_output"
 EEVEE_OUTPUT_NODE = "richmat_output_eevee"
 EXPORT_OUTPUT_NODE = "richmat_output_export"
 EXPORT_NODE = "richmat_export"
-OSL_SETTINGS = "turn on Open Shading Language in Render Properties with the CPU device (or an OptiX GPU)"
 COLOR_SPACE_COLOR = "Linear Rec.709"
 COLOR_SPACE_DATA = "Non-Color"
 
@@ -86,14 +85,40 @@ def enable_osl(scene: bpy.types.Scene) -> None:
     scene.cycles.shading_system = True
 
 
+def gpu_backend(scene: bpy.types.Scene) -> str | None:
+    """The GPU backend Cycles renders ``scene`` with (CUDA, OPTIX, HIP, METAL, ONEAPI); None on the CPU."""
+    if scene.cycles.device == "CPU":
+        return None
+    cycles = bpy.context.preferences.addons.get("cycles")
+    backend = cycles.preferences.compute_device_type if cycles is not None else "NONE"
+    return None if backend == "NONE" else backend
+
+
+def osl_device(scene: bpy.types.Scene) -> bool:
+    """Whether Cycles' device for ``scene`` can run OSL: the CPU or OptiX."""
+    return gpu_backend(scene) in (None, "OPTIX")
+
+
 def osl_runs(scene: bpy.types.Scene) -> bool:
     """Whether Cycles, as the scene sets it up, runs Script nodes: OSL on, on the CPU or OptiX."""
-    if not scene.cycles.shading_system:
-        return False
-    if scene.cycles.device == "CPU":
-        return True
-    cycles = bpy.context.preferences.addons.get("cycles")
-    return cycles is not None and cycles.preferences.compute_device_type in ("NONE", "OPTIX")
+    return bool(scene.cycles.shading_system) and osl_device(scene)
+
+
+def switch_device_line(scene: bpy.types.Scene) -> str:
+    """The one line telling the artist what to switch where the device cannot run OSL (the add-on never
+    changes the device)."""
+    return (f"Cycles renders on {gpu_backend(scene)}, which cannot run OSL: set Render Properties > Device to CPU, "
+            "or Preferences > System > Cycles Render Devices to OptiX, then press the button again")
+
+
+def turn_on_osl(scene: bpy.types.Scene) -> str:
+    """Turn on the scene's Open Shading Language option where the device can run it (an undoable scene
+    setting, never the engine or the device): the sentence for the report, empty when it was on already.
+    Call only where ``osl_device(scene)``."""
+    if scene.cycles.shading_system:
+        return ""
+    scene.cycles.shading_system = True
+    return "Turned on Open Shading Language in Render Properties (Ctrl+Z undoes it)"
 
 
 @contextmanager

@@ -106,6 +106,14 @@ def world_maps(surfaces: Iterable[tuple[bpy.types.Object, Collection[int]]], siz
     return ParamMap(raster.normals), ParamMap(raster.positions), None
 
 
+def coverage(surfaces: Iterable[tuple[bpy.types.Object, Collection[int]]], size: tuple[int, int]
+             ) -> np.ndarray | None:
+    """The (H, W) texels (top row first) whose centres the faces of the given (object, material slots)
+    cover; None where they have no UV map."""
+    raster, _ = _raster(surfaces, size)
+    return None if raster is None else raster.coverage
+
+
 def colour_map(surfaces: Iterable[tuple[bpy.types.Object, Collection[int]]], size: tuple[int, int],
                attribute: str) -> tuple[np.ndarray | None, str | None]:
     """(the colour attribute as an (H, W, 3) linear RGB map, None), or (None, reason).

@@ -15,7 +15,6 @@ from ..core import material_folder, neural_encoder
 from ..core.folder_io import FormatError
 from ..core.prompt import prompt_type
 from . import bake, cycles_builder, mesh_maps, neural_assets, neural_backend, uplift
-from .cycles_builder import OSL_SETTINGS
 from .pbr_source import InputProblem
 
 
@@ -63,24 +62,27 @@ class RICHMAT_OT_uplift_material(bpy.types.Operator):
         s = _settings(context)
         cycles = uplift.cycles_choice(context.scene)
         try:
-            lines = uplift.uplift(context.active_object, s.all_slots, s.enhancement_type, s.seed, cycles)
+            lines = uplift.uplift(context.active_object, s.all_slots, s.enhancement_type, s.seed, cycles,
+                                  amount=s.amount)
         except InputProblem as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        self.report({"INFO"}, "Uplifted " + "; ".join(lines) + ". " + _engines_note(cycles))
+        self.report({"INFO"}, "Uplifted " + "; ".join(lines) + ". " + _engines_note(context.scene, cycles))
         return {"FINISHED"}
 
 
-def _engines_note(cycles: cycles_builder.Graph) -> str:
+def _engines_note(scene: bpy.types.Scene, cycles: cycles_builder.Graph) -> str:
     if cycles == "osl":
         return "Cycles renders the exact OSL shader, EEVEE and Cycles without OSL the native nodes"
-    return (f"Cycles and EEVEE render the native nodes (Cycles here cannot run OSL: {OSL_SETTINGS}, "
-            "then Toggle Cycles Graph for the exact shader)")
+    if cycles_builder.osl_device(scene):
+        return "Cycles and EEVEE render the native nodes (Toggle Cycles Graph for Cycles' exact OSL shader)"
+    return ("Cycles and EEVEE render the native nodes (for Cycles' exact OSL shader: "
+            f"{cycles_builder.switch_device_line(scene)})")
 
 
 class RICHMAT_OT_toggle_cycles_graph(bpy.types.Operator):
-    """Switch what Cycles renders for the enhanced materials: the exact OSL shader (CPU, OptiX) or the
-    native node graph (every device); EEVEE always renders the native graph"""
+    """Switch what Cycles renders for the enhanced materials: the exact OSL shader (CPU, OptiX; turns the
+    scene's Open Shading Language on) or the native node graph (every device); EEVEE renders the native graph"""
 
     bl_idname = "richmat.toggle_cycles_graph"
     bl_label = "Toggle Cycles Graph (OSL / Native)"
@@ -97,9 +99,12 @@ class RICHMAT_OT_toggle_cycles_graph(bpy.types.Operator):
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         target: cycles_builder.Graph = "native" if cycles_builder.cycles_graph(_enhanced(context)) == "osl" else "osl"
-        if target == "osl" and uplift.cycles_choice(context.scene) != "osl":
-            self.report({"ERROR"}, f"Cycles cannot run OSL with these settings: {OSL_SETTINGS}")
-            return {"CANCELLED"}
+        turned_on = ""
+        if target == "osl":
+            if not cycles_builder.osl_device(context.scene):
+                self.report({"ERROR"}, cycles_builder.switch_device_line(context.scene))
+                return {"CANCELLED"}
+            turned_on = cycles_builder.turn_on_osl(context.scene)
         obj = context.active_object
         switched = []
         for index in uplift.slot_indices(obj, _settings(context).all_slots):
@@ -108,8 +113,8 @@ class RICHMAT_OT_toggle_cycles_graph(bpy.types.Operator):
             if enhanced is not None and cycles_builder.cycles_graph(enhanced) is not None:
                 cycles_builder.use_in_cycles(enhanced, target)
                 switched.append(enhanced.name)
-        self.report({"INFO"}, f"Cycles now renders the {'exact OSL shader' if target == 'osl' else 'native nodes'} "
-                    "of " + ", ".join(switched))
+        self.report({"INFO"}, (f"{turned_on}. " if turned_on else "") + "Cycles now renders the "
+                    f"{'exact OSL shader' if target == 'osl' else 'native nodes'} of " + ", ".join(switched))
         return {"FINISHED"}
 
 
@@ -156,7 +161,7 @@ class RICHMAT_OT_bake_parameters(bpy.types.Operator):
         except (InputProblem, OSError) as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        self.report({"INFO"}, "Baked " + "; ".join(lines))
+        self.report({"INFO"}, "Baked " + "; ".join(lines) + bake.unsaved_note(context.scene))
         return {"FINISHED"}
 
 
@@ -416,7 +421,11 @@ class RICHMAT_OT_unwrap_uvs(bpy.types.Operator):
     def execute(self, context: bpy.types.Context) -> set[str]:
         from .unwrap import unwrap
 
-        result = unwrap(context.active_object)
+        try:
+            result = unwrap(context.active_object)
+        except InputProblem as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
         self.report({"WARNING"} if result.stretched else {"INFO"}, result.message(context.active_object.name))
         return {"FINISHED"}
 

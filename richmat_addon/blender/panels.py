@@ -31,6 +31,7 @@ def draw_richmat(layout: bpy.types.UILayout, context: bpy.types.Context) -> None
     col.prop(s, "enhancement_type")
     if s.enhancement_type != "AUTO":
         col.label(text=TYPES[int(s.enhancement_type)].description)
+    col.prop(s, "amount", slider=True)
     col.prop(s, "seed")
     col.prop(s, "all_slots")
     col.operator("richmat.uplift_material", icon="SHADING_RENDERED")
@@ -54,7 +55,9 @@ def draw_richmat(layout: bpy.types.UILayout, context: bpy.types.Context) -> None
 
 def draw_parameters(layout: bpy.types.UILayout, enhanced: bpy.types.Material) -> None:
     box = layout.box()
-    box.label(text=f"{enhanced.name}: type {enhanced.richmat.type}, seed {enhanced.richmat.seed}")
+    settings = enhanced.richmat
+    box.label(text=f"{enhanced.name}: type {settings.type}, seed {settings.seed}, amount {settings.amount:.2f}"
+              + (" (less on dark texels)" if settings.auto_touch else ""))
     nodes = enhanced.node_tree.nodes
     if preview_neural.SCRIPT_NODE in nodes:
         box.label(text="Neural preview active (switch to edit parameters)")

@@ -29,7 +29,7 @@ from typing import Literal
 import bpy
 import numpy as np
 
-from ..core.colour import srgb_to_linear
+from ..core.colour import LUMINANCE, srgb_to_linear
 from ..core.maps import ParamMap, PbrInputs
 from .osl_env import prefer_blender_bundled_modules
 
@@ -349,7 +349,7 @@ def _map(source: Source, channels: int, cache: dict[str, np.ndarray], max_size: 
     px = cache[image.name]
     values = px[..., :3] if source.channel is None else px[..., source.channel:source.channel + 1]
     if channels == 1 and values.shape[-1] == 3:  # a colour image into a float socket: Blender's luminance
-        values = (values @ np.array([0.2126, 0.7152, 0.0722], np.float32))[..., None]
+        values = (values @ np.array(LUMINANCE, np.float32))[..., None]
     factor = np.resize(np.asarray(source.factor, np.float32), values.shape[-1])
     return ParamMap(values * factor)
 

@@ -3,8 +3,9 @@
 The material is built like the enhanced one (a copy of the original keeping its
 normal and UV chains) around a Script node whose OSL source
 ``core.neural_osl`` generates from the decoder weights the latents were fitted
-against. Its neural lobe is lit by the scene's world (an Environment Texture,
-or the Background colour); the diffuse base ``T c`` by everything (docs/addon.md).
+against. The shipped hybrid decoder's lobes are Cycles closures, lit like any
+material (lamps, shadows, the world); the MLP baseline's lobe is an emission lit
+by the scene's world alone (an Environment Texture, or the Background colour).
 OSL runs in Cycles on the CPU and OptiX only: the material also holds the baked
 enhanced material's native graph, which EEVEE renders, and which Cycles renders
 where it cannot run OSL (the add-on's handler switches it, as for enhanced ones).
@@ -22,14 +23,14 @@ from ..core.neural_osl import neural_osl_source
 from ..core.neural_encoder import WEIGHTS_FILE
 from ..core.tensor_file import read_safetensors
 from . import cycles_builder, neural_assets, uplift
-from .cycles_builder import (COLOR_SPACE_COLOR, COLOR_SPACE_DATA, EEVEE_OUTPUT_NODE, OSL_SETTINGS, OUTPUT_NODE,
+from .cycles_builder import (COLOR_SPACE_COLOR, COLOR_SPACE_DATA, EEVEE_OUTPUT_NODE, OUTPUT_NODE,
                              compile_script_node)
 from .osl_env import prefer_blender_bundled_modules
 from .pbr_source import InputProblem
 
 SCRIPT_NODE = cycles_builder.NEURAL_SCRIPT_NODE
 SUFFIX = " (richmat neural)"
-SAMPLES = 8  # directions per shading point for the neural lobe's world lighting
+SAMPLES = 8  # the MLP baseline: directions per shading point for its lobe's world lighting
 
 
 def _shader_text(weights: Path, digest: str) -> bpy.types.Text:
@@ -110,16 +111,18 @@ def add_neural_nodes(material: bpy.types.Material, text: bpy.types.Text, baked: 
         tree.links.new(energy.outputs["Color"], script.inputs["energy_scale"])
     else:
         script.inputs["energy_scale"].default_value = float(scale)
-    probe, rotation, color = world_lighting(scene)
-    script.inputs["probe"].default_value = probe
-    script.inputs["probe_rotation"].default_value = rotation
-    script.inputs["world_color"].default_value = (*color, 1.0)
-    script.inputs["samples"].default_value = SAMPLES
+    if "probe" in script.inputs:  # the MLP baseline's shader integrates its lobe from the world itself
+        probe, rotation, color = world_lighting(scene)
+        script.inputs["probe"].default_value = probe
+        script.inputs["probe_rotation"].default_value = rotation
+        script.inputs["world_color"].default_value = (*color, 1.0)
+        script.inputs["samples"].default_value = SAMPLES
     return [script, *fallback]
 
 
-def preview(context: bpy.types.Context) -> list[str]:
-    """Put the neural preview material in the slots whose enhanced material was fitted."""
+def preview(context: bpy.types.Context) -> tuple[list[str], str]:
+    """Put the neural preview material in the slots whose enhanced material was fitted; the names, and
+    what the artist must know about the render settings (OSL turned on, or what to switch)."""
     weights = neural_assets.decoder_folder(context) / WEIGHTS_FILE
     if not weights.is_file():
         raise InputProblem(f"no decoder weights at {weights}: train them (python -m torch_models "
@@ -142,9 +145,14 @@ def preview(context: bpy.types.Context) -> list[str]:
                                "run Fit Neural Material again")
         work.append((p, baked, neural))
     scene = context.scene
-    if scene.render.engine == "CYCLES" and not cycles_builder.osl_runs(scene):
-        raise InputProblem(f"the neural preview is an OSL shader and Cycles cannot run OSL with these settings: "
-                           f"{OSL_SETTINGS}")
+    if scene.render.engine == "CYCLES" and not cycles_builder.osl_device(scene):
+        raise InputProblem(f"the neural preview is an OSL shader: {cycles_builder.switch_device_line(scene)}")
+    notes = [cycles_builder.turn_on_osl(scene)] if cycles_builder.osl_device(scene) else []
+    if scene.render.engine != "CYCLES":
+        notes.append(f"{scene.render.engine.replace('BLENDER_', '').title()} shows the baked enhanced material; "
+                     "set Render Properties > Render Engine to Cycles to see the decoder"
+                     + ("" if cycles_builder.osl_device(scene) else
+                        f" ({cycles_builder.switch_device_line(scene)})"))
     text = _shader_text(weights, digest)
     lines = []
     for p, baked, neural in work:
@@ -158,12 +166,12 @@ def preview(context: bpy.types.Context) -> list[str]:
         material.name = name
         p.obj.material_slots[p.slot_index].material = material
         lines.append(name)
-    return lines
+    return lines, ". ".join(n for n in notes if n)
 
 
 class RICHMAT_OT_preview_neural(bpy.types.Operator):
-    """Render the fitted neural material with an OSL shader that runs the decoder (Cycles on the CPU or OptiX;
-    EEVEE shows the baked enhanced material)"""
+    """Render the fitted neural material with an OSL shader that runs the decoder (Cycles on the CPU or OptiX,
+    where it turns the scene's Open Shading Language on; EEVEE shows the baked enhanced material)"""
 
     bl_idname = "richmat.preview_neural"
     bl_label = "Preview Neural Material"
@@ -184,10 +192,11 @@ class RICHMAT_OT_preview_neural(bpy.types.Operator):
 
     def execute(self, context: bpy.types.Context) -> set[str]:
         try:
-            lines = preview(context)
+            lines, settings = preview(context)
         except (InputProblem, OSError, RuntimeError) as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        self.report({"INFO"}, "Neural preview: " + ", ".join(lines) + ". Cycles with OSL renders the decoder "
-                    "(the neural lobe lit by the world only); EEVEE the baked enhanced material's native nodes")
+        self.report({"INFO"}, (f"{settings}. " if settings else "") + "Neural preview: " + ", ".join(lines)
+                    + ". Cycles with OSL renders the decoder (the neural lobe lit by the world only); EEVEE the "
+                    "baked enhanced material's native nodes")
         return {"FINISHED"}

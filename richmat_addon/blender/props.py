@@ -14,6 +14,11 @@ class RichmatSceneSettings(bpy.types.PropertyGroup):
     enhancement_type: bpy.props.EnumProperty(
         name="Type", items=TYPE_ITEMS, default="AUTO",
         description="Which lobes the enhancement adds")
+    amount: bpy.props.FloatProperty(
+        name="Amount", default=1.0, min=0.0, max=1.0, subtype="FACTOR",
+        description="How much of the enhancement to apply: 0 gives back the PBR material, 1 the rules as drawn. "
+                    "Auto also applies less on dark texels (tyres, dark glass, dark paint), which the rules' "
+                    "coat, dust and scatter would turn grey")
     seed: bpy.props.IntProperty(
         name="Seed", default=0, min=0,
         description="Seed of the sampled parameters (mixed with the material name)")
@@ -46,6 +51,8 @@ class RichmatMaterialSettings(bpy.types.PropertyGroup):
         name="ID", description="Identifies the material's baked folder so no other material overwrites it")
     type: bpy.props.IntProperty(name="Type", default=-1)
     seed: bpy.props.IntProperty(name="Seed", default=0)
+    amount: bpy.props.FloatProperty(name="Amount", default=1.0, min=0.0, max=1.0)
+    auto_touch: bpy.props.BoolProperty(name="Auto's Touch", description="Applied less on dark texels (Auto)")
     record: bpy.props.StringProperty(name="Record", description="Enhancement settings (JSON)")
     bake_dir: bpy.props.StringProperty(name="Baked Folder", subtype="DIR_PATH")
     neural_dir: bpy.props.StringProperty(name="Neural Folder", subtype="DIR_PATH")

@@ -73,13 +73,15 @@ def plan(obj: bpy.types.Object, all_slots: bool) -> list[SlotPlan]:
         sources = read_sources(original)
         if sources.textured and not mesh_maps.has_uvs(obj):
             raise InputProblem(f"{obj.name!r} has textures but no UV map; unwrap it first "
-                               "(Richmat > Unwrap UVs, with xatlas)")
+                               "(Richmat > Unwrap UVs)")
         plans.append(SlotPlan(obj, index, original, sources))
     return plans
 
 
-def enhance_slot(p: SlotPlan, requested: str, seed: int, max_size: int | None) -> EnhancedMaterial:
-    """The enhanced maps of one slot; dust types get world maps rasterised from the mesh."""
+def enhance_slot(p: SlotPlan, requested: str, seed: int, max_size: int | None, amount: float = 1.0,
+                 touch: bool | None = None) -> EnhancedMaterial:
+    """The enhanced maps of one slot, scaled by ``amount`` and, for Auto (or ``touch``), by the lighter
+    touch on dark texels (``core.enhance.auto_touch``); dust types get world maps rasterised from the mesh."""
     pbr = load_pbr(p.sources, max_size)
     type_, note = resolve_type(pbr, "auto" if requested == "AUTO" else int(requested), seed)
     if requested != "AUTO" and type_ != int(requested):
@@ -88,7 +90,8 @@ def enhance_slot(p: SlotPlan, requested: str, seed: int, max_size: int | None) -
     size = _texture_size(pbr)
     if type_ in DUST_TYPES and size is not None and mesh_maps.has_uvs(p.obj):
         normals, positions, _ = mesh_maps.world_maps([(p.obj, [p.slot_index])], size)
-    return enhance(pbr, type_, seed, world_normals=normals, world_positions=positions)
+    return enhance(pbr, type_, seed, world_normals=normals, world_positions=positions, amount=amount,
+                   touch=requested == "AUTO" if touch is None else touch)
 
 
 def _texture_size(pbr: PbrInputs) -> tuple[int, int] | None:
@@ -176,6 +179,7 @@ def build_enhanced(p: SlotPlan, mat: EnhancedMaterial, textures: dict[str, Any],
     enhanced = copy_with_chains(p, lambda m: cycles_builder.add_enhanced_nodes(m, mat, textures, cycles=cycles))
     settings = enhanced.richmat
     settings.type, settings.seed = mat.type, mat.seed
+    settings.amount, settings.auto_touch = mat.settings.get("amount", 1.0), mat.settings.get("auto_touch", False)
     settings.record = json.dumps(record, default=_jsonable)
     return enhanced
 
@@ -250,13 +254,13 @@ def keep_cycles_renderable(scene: bpy.types.Scene) -> list[str]:
 
 
 def uplift(obj: bpy.types.Object, all_slots: bool, requested: str, seed: int, cycles: cycles_builder.Graph,
-           max_size: int | None = PREVIEW_SIZE) -> list[str]:
+           max_size: int | None = PREVIEW_SIZE, amount: float = 1.0, touch: bool | None = None) -> list[str]:
     """Uplift the object's materials, Cycles reading ``cycles``; returns one line per material for the report.
 
     Every slot is checked and enhanced before the first datablock is created, so
     bad input anywhere changes nothing.
     """
-    work = [(p, enhance_slot(p, requested, seed, max_size)) for p in plan(obj, all_slots)]
+    work = [(p, enhance_slot(p, requested, seed, max_size, amount, touch)) for p in plan(obj, all_slots)]
     lines = []
     for p, mat in work:
         textures = {name: preview_image(f"richmat {p.original.name} {name}", pmap)
@@ -270,5 +274,7 @@ def uplift(obj: bpy.types.Object, all_slots: bool, requested: str, seed: int, cy
             raise
         install(p, enhanced)
         note = mat.settings.get("type_note") or ""
-        lines.append(f"{p.original.name}: type {mat.type}" + (f" ({note})" if note else ""))
+        touch = (f", amount {mat.settings['amount']:.2f}" if mat.settings.get("amount", 1.0) != 1.0 else "") + \
+            (", lighter on dark texels" if mat.settings.get("auto_touch") else "")
+        lines.append(f"{p.original.name}: type {mat.type}{touch}" + (f" ({note})" if note else ""))
     return lines

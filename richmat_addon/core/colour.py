@@ -1,4 +1,4 @@
-"""Colour-space transfer curves, in one place so every reader decodes texels the same way.
+"""Colour-space transfer curves and luminance weights, in one place so every reader decodes texels the same way.
 
 The add-on's Principled BSDF reader, the farm and the glTF reader all linearise
 sRGB-tagged textures with this curve, as Cycles does before shading.
@@ -6,6 +6,8 @@ sRGB-tagged textures with this curve, as Cycles does before shading.
 from __future__ import annotations
 
 import numpy as np
+
+LUMINANCE = (0.2126, 0.7152, 0.0722)  # Rec. 709 weights of linear RGB: Blender's scene-linear primaries
 
 
 def srgb_to_linear(x: np.ndarray) -> np.ndarray:

@@ -15,13 +15,22 @@ from collections.abc import Callable
 import numpy as np
 
 from . import masks
-from .enhancement_types import (DIELECTRIC_ONLY, FAMILIES, METAL_REMAP, METAL_TYPES, TYPE_MIX, TYPES,
-                                index_ranges)
+from .colour import LUMINANCE
+from .enhancement_types import (BASE_FAMILY, DIELECTRIC_ONLY, FAMILIES, METAL_REMAP, METAL_TYPES, TYPE_MIX,
+                                TYPES, index_ranges)
 from .maps import EnhancedMaterial, ParamMap, PbrInputs
 from .schema import PARAM_BY_NAME, PARAMS
 
 DUST_MASK_FLOOR = 0.35  # dust weight between mask features, as a share of the peak
+DUST_MASK_SCALE = (1.0, 3.0)  # the range of the triplanar dust mask's scale (features per unit), drawn per material
 METALLIC_THRESHOLD = 0.5  # mean metalness above which a material counts as a metal
+# Auto's touch: the rules add about the same reflectance whatever the base (a clear coat's Fresnel ~0.09 of
+# uniform light, white dust and fuzz, scatter lifted toward white), which greys a dark base. Auto scales the
+# enhancement per texel by (base luminance / FULL_TOUCH_LUMINANCE)^TOUCH_POWER, at most 1 (linear luminance;
+# 0.18 is sRGB 0.46): a tyre at 0.02 keeps 4 % of it, a mid-grey paint all of it.
+FULL_TOUCH_LUMINANCE = 0.18
+TOUCH_POWER = 1.5
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722], np.float32)  # Rec.709, scene-linear
 
 
 def is_metallic(pbr: PbrInputs) -> bool:
@@ -31,6 +40,11 @@ def is_metallic(pbr: PbrInputs) -> bool:
 def _rng(seed: int, name: str, purpose: str) -> np.random.Generator:
     digest = hashlib.sha256(f"{name}\0{purpose}".encode()).digest()
     return np.random.default_rng([seed, int.from_bytes(digest[:8], "little")])
+
+
+def _draw(rng: np.random.Generator, family: str) -> dict[str, float]:
+    """The settings ``family`` draws (``Family.draws``), in its order."""
+    return {d.key: rng.uniform(d.lo, d.hi) for d in FAMILIES[family].draws}
 
 
 def resolve_type(pbr: PbrInputs, requested: int | str, seed: int) -> tuple[int, str]:
@@ -111,15 +125,48 @@ def _dust_weight(pbr: PbrInputs, rng: np.random.Generator, peak: float,
     mask = DUST_MASK_FLOOR + (1.0 - DUST_MASK_FLOOR) * masks.DUST_MASKS[kind](max(shape), rng)
     n = normals.value / np.maximum(np.linalg.norm(normals.value, axis=-1, keepdims=True), 1e-12)
     up = np.clip(n[..., 2:3] / 0.7, 0.0, 1.0) ** 2
-    tri = masks.triplanar(mask, positions.value, n, scale=rng.uniform(1.0, 3.0))[..., None]
+    tri = masks.triplanar(mask, positions.value, n, scale=rng.uniform(*DUST_MASK_SCALE))[..., None]
     settings["dust_geometry"] = "world normals and positions"
     return peak * up * tri
 
 
+def auto_touch(pbr: PbrInputs) -> ParamMap:
+    """How much of the enhancement Auto applies, per texel of the base colour (a constant for a constant
+    base): full on a base of mid-grey luminance or lighter, less on darker ones (tyres, dark glass, dark
+    paint), which the rules' light dust, haze and scatter would otherwise turn grey."""
+    lum = np.nan_to_num(np.clip(pbr.base_color.value, 0.0, 1.0)) @ LUMINANCE
+    return ParamMap((np.clip(lum / FULL_TOUCH_LUMINANCE, 0.0, 1.0) ** TOUCH_POWER)[..., None].astype(np.float32))
+
+
+def _resampled(value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """A (C,) or (H, W, C) array on the grid of ``shape`` (nearest texel), so maps of different sizes mix."""
+    if value.ndim == 1 or len(shape) == 1 or value.shape[:2] == tuple(shape[:2]):
+        return value
+    h, w = shape[:2]
+    rows = (np.arange(h) * value.shape[0]) // h
+    cols = (np.arange(w) * value.shape[1]) // w
+    return value[rows][:, cols]
+
+
+def scale_enhancement(mat: EnhancedMaterial, plain: EnhancedMaterial, amount: ParamMap) -> EnhancedMaterial:
+    """``mat`` moved toward ``plain`` (its PBR material in the same model, ``baseline``): every parameter
+    ``plain + amount (enhanced - plain)``, so lobe weights scale by ``amount`` and 0 gives back the PBR
+    material. ``amount`` is a constant or a map over the base colour's texels."""
+    params = {}
+    for name, m in mat.params.items():
+        e, b = m.value, plain.params[name].value
+        shape = max((e.shape, b.shape, amount.value.shape), key=len)
+        e, b, a = (_resampled(v, shape) for v in (e, b, amount.value))
+        params[name] = _fit(name, b + a * (e - b)).collapse()  # a lerp of equal texels stays a constant
+    return EnhancedMaterial(mat.name, mat.type, mat.seed, mat.base_color, params, mat.settings)
+
+
 def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
             world_normals: ParamMap | None = None,
-            world_positions: ParamMap | None = None) -> EnhancedMaterial:
-    """Enhance one material. Types 4/5 on a metal raise ValueError (see resolve_type)."""
+            world_positions: ParamMap | None = None, amount: float = 1.0, touch: bool = False) -> EnhancedMaterial:
+    """Enhance one material, scaled toward the PBR material by ``amount`` in [0, 1] (1: the rules as drawn),
+    times ``auto_touch`` per texel with ``touch`` (what Auto asks for). Types 4/5 on a metal raise
+    ValueError (see resolve_type)."""
     resolved, note = resolve_type(pbr, type_, seed)
     if type_ != "auto" and resolved != int(type_):
         raise ValueError(f"{pbr.name}: {note}. Choose a type in {index_ranges(METAL_TYPES)} for metals.")
@@ -128,11 +175,8 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
     rough = _clean(pbr.roughness, 0.0, 1.0, "roughness", pbr.name)
     metal = _clean(pbr.metalness, 0.0, 1.0, "metalness", pbr.name)
 
-    s = {"type": resolved, "type_note": note, "seed": seed,
-         "p": rng.uniform(2.2, 3.5), "q": rng.uniform(1.2, 1.8), "s": rng.uniform(1.1, 1.6),
-         "haze_weight": rng.uniform(*FAMILIES["haze"].drawn), "diel_ior": rng.uniform(1.4, 1.7),
-         "edge_tint": rng.uniform(0.85, 1.0)}
-    lum = base @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    s = {"type": resolved, "type_note": note, "seed": seed, **_draw(rng, BASE_FAMILY)}
+    lum = base @ np.array(LUMINANCE, np.float32)
     values: dict[str, np.ndarray | float] = {
         "spec_color": base, "edge_tint": s["edge_tint"], "metalness": metal,
         "alpha_core": rough ** s["p"], "alpha_haze": np.minimum(1.0, s["s"] * rough ** s["q"]),
@@ -142,16 +186,15 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
         del values["spec_color"]  # no conductor anywhere: keep the constant default
     lobes = TYPES[resolved].lobes
     if "dust" in lobes:
-        s.update(dust_peak=rng.uniform(*FAMILIES["dust"].drawn), dust_roughness=rng.uniform(0.3, 0.8))
+        s.update(_draw(rng, "dust"))
         values["dust_weight"] = _dust_weight(pbr, rng, s["dust_peak"], world_normals,
                                              world_positions, s)
         values["dust_roughness"] = s["dust_roughness"]
     if "fuzz" in lobes:
-        s.update(fuzz_weight=rng.uniform(*FAMILIES["fuzz"].drawn), fuzz_roughness=rng.uniform(0.3, 0.8))
+        s.update(_draw(rng, "fuzz"))
         values["dust_weight"], values["dust_roughness"] = s["fuzz_weight"], s["fuzz_roughness"]
     if "coat" in lobes:
-        s.update(coat_ior=rng.uniform(1.45, 1.6), coat_alpha=rng.uniform(0.0025, 0.02),
-                 coat_damage=str(rng.choice(["none"] + sorted(masks.DAMAGE_MASKS))))
+        s.update(_draw(rng, "coat"), coat_damage=str(rng.choice(["none"] + sorted(masks.DAMAGE_MASKS))))
         damage_shape = _mask_shape(pbr, world_normals)
         if damage_shape is None:
             s["coat_damage"] = "none"
@@ -159,8 +202,7 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
         values["coat_weight"] = 1.0 if s["coat_damage"] == "none" else \
             1.0 - _uv_mask(masks.DAMAGE_MASKS[s["coat_damage"]], damage_shape, rng)
     if "scatter" in lobes:
-        s.update(inner_weight=rng.uniform(*FAMILIES["scatter"].drawn), inner_roughness=rng.uniform(0.3, 0.7),
-                 subsurf_alpha=rng.uniform(0.5, 0.9), subsurf_ior=rng.uniform(1.3, 1.5))
+        s.update(_draw(rng, "scatter"))
         # Gentle desaturation: 30 % toward grey, then lifted a little toward white.
         values["scatter_color"] = 0.85 * (0.7 * base + 0.3 * lum[..., None]) + 0.15
         values.update(inner_weight=s["inner_weight"], inner_roughness=s["inner_roughness"],
@@ -169,7 +211,12 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
 
     params = {p.name: _fit(p.name, values.get(p.name, p.default)) for p in PARAMS}
     settings = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in s.items()}
-    return EnhancedMaterial(pbr.name, resolved, seed, ParamMap(base), params, settings)
+    mat = EnhancedMaterial(pbr.name, resolved, seed, ParamMap(base), params, settings)
+    if amount == 1.0 and not touch:
+        return mat
+    settings.update(amount=float(amount), auto_touch=touch)
+    scale = auto_touch(pbr).value * amount if touch else np.float32([amount])
+    return scale_enhancement(mat, baseline(pbr), ParamMap(scale))
 
 
 def baseline(pbr: PbrInputs) -> EnhancedMaterial:

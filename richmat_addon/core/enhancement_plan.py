@@ -13,8 +13,10 @@ from .enhancement_types import DIELECTRIC_ONLY, METAL_REMAP, TYPE_MIX
 
 
 def asset_type(asset_id: str, seed: int) -> int:
+    """The asset's type, drawn from the shares of ``TYPE_MIX`` relative to their sum (a type added with a
+    share of its own is drawn too; the paper's mix sums to 1, so its draws are unchanged)."""
     digest = hashlib.sha256(f"{seed}\0{asset_id}\0type".encode("utf-8")).digest()
-    u = int.from_bytes(digest[:8], "big") / 2.0 ** 64
+    u = int.from_bytes(digest[:8], "big") / 2.0 ** 64 * sum(TYPE_MIX)
     edge = 0.0
     for type_, share in enumerate(TYPE_MIX):
         edge += share

@@ -18,6 +18,8 @@ import math
 import torch
 from torch import Tensor
 
+from richmat_addon.core.schema import SHEEN_ROUGHNESS_MIN  # Cycles' clamp
+
 from . import tables
 from .frame import cos_theta, from_local, sample_uniform_disk, tangent_frame, to_local
 from .fresnel import (conductor_fss, dielectric_fss, f0_from_ior, fresnel_conductor,
@@ -30,7 +32,6 @@ __all__ = [
     "ggx_sample", "ggx_pdf", "gulbrandsen", "multi_ggx_factor",
 ]
 
-SHEEN_ROUGHNESS_MIN = 1e-3  # = schema.SHEEN_ROUGHNESS_MIN, Cycles' clamp
 _SHEEN_DROP = 1e-5  # Cycles drops the closure when |A| or R falls below this
 _E_MIN = 1e-4  # E >= 0.3 on the whole table; the clamp only guards the division
 

@@ -21,11 +21,10 @@ import torch
 from torch import Tensor
 
 from richmat_addon.core import graph as g
+from richmat_addon.core.colour import LUMINANCE
 from richmat_addon.core.schema import CHANNEL_SLICES, PARAM_BY_NAME
 
 from . import lobes
-
-LUMINANCE = (0.2126, 0.7152, 0.0722)  # Rec.709, Blender's scene-linear primaries
 
 
 def luminance(rgb: Tensor) -> Tensor:

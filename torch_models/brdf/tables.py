@@ -24,7 +24,7 @@ Tables:
 - ``sheen_ltc`` [A, B, R][roughness 32][mu 32]: Zeltner sheen LTC coefficients and
   albedo, measured from Cycles: bench/calibrate_sheen.py starts from Stephen
   Hill's closed-form fits (as MaterialX ships them) and fits the table to
-  Cycles renders of the closure; the result ships as ``data/sheen_ltc.npy``
+  Cycles renders of the closure; the result ships as ``richmat_addon/core/data/sheen_ltc.npy``
   (Cycles' own table is a different fit than Hill's, see docs/lobes.md).
 - ``ggx_fresnel_moments`` [16][mu 32][rough 32] (ours, not Cycles'): the
   single-scatter albedo with Fresnel replaced by each of 16 hat functions of
@@ -40,6 +40,8 @@ from pathlib import Path
 import numpy as np
 import torch
 from torch import Tensor
+
+from richmat_addon.core.sheen_table import sheen_table
 
 from . import ggx
 from .frame import cos_theta, dot, reflect
@@ -283,13 +285,12 @@ def hill_sheen_ltc() -> Tensor:
     return torch.stack(hill_sheen_fit(mu, rough))
 
 
-SHEEN_TABLE_FILE = Path(__file__).with_name("data") / "sheen_ltc.npy"
 GGX_E_UPPER_FILE = Path(__file__).with_name("data") / "ggx_e_upper.npy"
 
 
 def calibrated_sheen_ltc() -> Tensor:
     """[A, B, R][roughness][mu] fitted to Cycles' sheen by bench/calibrate_sheen.py."""
-    return torch.from_numpy(np.load(SHEEN_TABLE_FILE)).to(_F64)
+    return torch.from_numpy(sheen_table()).to(_F64)
 
 
 def stored_ggx_e_upper() -> Tensor:

@@ -1,4 +1,5 @@
 """Text-to-neural-material generator (paper sec. 5.2): a small conditional multi-view diffusion model."""
+from richmat_addon.core import enhancement_types
 
 # Sampling steps, views and samples averaged of a generation, chosen from bench/generate_speed.py
 # (docs/reports/generate_speed.json; the samples from its samples sweep, docs/reports/generate_samples.json).
@@ -7,13 +8,13 @@ DEFAULT_STEPS = 18
 DEFAULT_VIEWS = 12
 DEFAULT_SAMPLES = 4
 DEFAULT_TEXTURE_SIZE = 64  # latent texture side when the input's base colour is constant or larger
-# Classifier-free guidance scale per enhancement type: per type, the value of 1, 1.5, 2 and 2.5
-# with the best mean PSNR on its held-out procedural objects (bench/generate_guidance.py,
-# docs/reports/generate_guidance.json). Type 4's captions are met by the prompted model alone:
-# more guidance overshoots them. Guidance 1 also skips the unconditional pass.
-GUIDANCE_BY_TYPE: dict[int, float] = {0: 2.5, 1: 2.0, 2: 2.5, 3: 2.0, 4: 1.0, 5: 1.5}
 
 
 def guidance_for(type_: int) -> float:
-    """The guidance a generation of enhancement type ``type_`` samples with by default."""
-    return GUIDANCE_BY_TYPE[type_]
+    """The guidance a generation of enhancement type ``type_`` samples with by default (the type table's)."""
+    return enhancement_types.TYPES[type_].guidance
+
+
+def guidance_by_type() -> dict[int, float]:
+    """Every type's default guidance, as the CLI's help and the benches' reports list it."""
+    return {t.index: t.guidance for t in enhancement_types.TYPES}

@@ -7,7 +7,7 @@ known, the uplift prior's latents (``prior.py``), coverage
 (``views.CONDITION_LAYOUT``); ``unknown_prior`` (V, 6, H, W) the prior of the same
 object uplifted without its roughness and metalness (what training puts in the
 prior channels when it drops those maps); ``text`` (384,) the caption's MiniLM
-embedding; ``type`` the enhancement type (0-5). The caption and asset id ride in
+embedding; ``type`` the enhancement type (an index of ``enhancement_types.TYPES``). The caption and asset id ride in
 the file's metadata.
 
 Two sources feed it:

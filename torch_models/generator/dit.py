@@ -12,8 +12,11 @@ itself. Tokens get a learned in-view patch position; views need no index because
 their world positions say where they are. Noise level, text embedding and the
 enhancement type enter every block through adaLN-Zero modulation (DiT).
 
-Type index ``NULL_TYPE`` and a zero text vector are the unconditional input of
-classifier-free guidance.
+A model conditions on the enhancement types of the table it was trained with
+(``DitConfig.types``, read back from the weights of a checkpoint): type index
+``types``, one past the last, and a zero text vector are the unconditional input of
+classifier-free guidance, so a type added to the table later is refused by an
+older model rather than read as the unconditional token.
 """
 from __future__ import annotations
 
@@ -23,12 +26,12 @@ from typing import Callable
 import torch
 from torch import Tensor, nn
 
+from richmat_addon.core.enhancement_types import TYPES
 from . import edm
 from .views import CONDITION_CHANNELS, PBR_CHANNELS, PRIOR_CHANNELS
 
 LATENT_CHANNELS = 6
-TYPES = 6
-NULL_TYPE = TYPES
+TYPE_EMBEDDING = "net.type_embed.weight"  # its rows: one per type, then the unconditional token
 
 
 @dataclass(frozen=True)
@@ -42,6 +45,7 @@ class DitConfig:
     sigma_data: float = edm.SIGMA_DATA  # the residual's scale: EDM's preconditioning and loss weighting
     p_mean: float = edm.P_MEAN  # centre of the training noise levels (ln sigma)
     sigma_max: float = edm.SIGMA_MAX  # where sampling starts
+    types: int = len(TYPES)  # enhancement types conditioned on; index ``types`` is the unconditional token
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -92,7 +96,7 @@ class MultiViewDit(nn.Module):
         self.noise_features = edm.FourierFeatures(cfg.dim)
         self.noise_mlp = nn.Sequential(nn.Linear(cfg.dim, cfg.dim), nn.SiLU(), nn.Linear(cfg.dim, cfg.dim))
         self.text = nn.Linear(cfg.text_dim, cfg.dim)
-        self.type_embed = nn.Embedding(TYPES + 1, cfg.dim)
+        self.type_embed = nn.Embedding(cfg.types + 1, cfg.dim)
         self.blocks = nn.ModuleList(Block(cfg.dim, cfg.heads) for _ in range(cfg.depth))
         self.final_norm = nn.LayerNorm(cfg.dim, elementwise_affine=False, eps=1e-6)
         self.final_ada = nn.Linear(cfg.dim, 2 * cfg.dim)
@@ -140,9 +144,9 @@ class Conditions:
         """(B, V, 6, H, W) the uplift prior's latents the residual is added to."""
         return self.views[:, :, PRIOR_CHANNELS]
 
-    def unconditional(self) -> "Conditions":
-        """The same geometry and prior with the prompt dropped (zero text, null type)."""
-        return Conditions(self.views, torch.zeros_like(self.text), torch.full_like(self.type, NULL_TYPE),
+    def unconditional(self, null_type: int) -> "Conditions":
+        """The same geometry and prior with the prompt dropped (zero text, the model's ``null_type``)."""
+        return Conditions(self.views, torch.zeros_like(self.text), torch.full_like(self.type, null_type),
                           self.unknown_prior)
 
     def repeat(self, count: int) -> "Conditions":
@@ -150,9 +154,9 @@ class Conditions:
         rep = lambda t: None if t is None else t.repeat_interleave(count, 0)
         return Conditions(rep(self.views), rep(self.text), rep(self.type), rep(self.unknown_prior))
 
-    def drop(self, keep: Tensor) -> "Conditions":
+    def drop(self, keep: Tensor, null_type: int) -> "Conditions":
         """Per-sample prompt dropout for classifier-free guidance training; keep (B,) bool."""
-        return Conditions(self.views, self.text * keep[:, None], torch.where(keep, self.type, NULL_TYPE),
+        return Conditions(self.views, self.text * keep[:, None], torch.where(keep, self.type, null_type),
                           self.unknown_prior)
 
     def drop_pbr(self, keep: Tensor) -> "Conditions":
@@ -175,6 +179,17 @@ class LatentGenerator(nn.Module):
         self.net = MultiViewDit(cfg)
         self.logvar = edm.LogVariance()
 
+    @property
+    def null_type(self) -> int:
+        """The type index of the unconditional input: one past the types the model was trained on."""
+        return self.net.cfg.types
+
+    def _check_types(self, cond: Conditions) -> None:
+        if bool(((cond.type < 0) | (cond.type >= self.null_type)).any()):
+            raise ValueError(f"this generator was trained on enhancement types 0-{self.null_type - 1} and is asked "
+                             f"for {sorted(set(cond.type.tolist()))}: a type added to the table since needs a "
+                             "generator trained with it (`python -m torch_models train-generator`)")
+
     def denoise(self, x: Tensor, sigma: Tensor, cond: Conditions) -> Tensor:
         """Estimate of the clean residual; background pixels (coverage 0) are forced to 0, as in the data."""
         s = edm.scalings(sigma.reshape(-1, 1, 1, 1, 1), self.net.cfg.sigma_data)
@@ -193,7 +208,8 @@ class LatentGenerator(nn.Module):
         noise = torch.randn(target.shape, generator=generator).to(dev)
         keep = (torch.rand(b, generator=generator) >= drop_prob).to(dev)
         keep_pbr = (torch.rand(b, generator=generator) >= pbr_drop_prob).to(dev)
-        cond = cond.drop(keep).drop_pbr(keep_pbr)
+        self._check_types(cond)
+        cond = cond.drop(keep, self.null_type).drop_pbr(keep_pbr)
         x0 = target - cond.prior
         x0_pred = self.denoise(x0 + sigma.reshape(-1, 1, 1, 1, 1) * noise, sigma, cond)
         return edm.weighted_loss(x0, x0_pred, sigma, self.logvar(sigma), cond.views[:, :, -1:],
@@ -205,11 +221,12 @@ class LatentGenerator(nn.Module):
         """Residual latent views (B, V, 6, H, W) for the conditions, deterministic per seed: the
         object's latents are ``cond.prior`` plus these. ``samples`` > 1 draws that many in one batch
         and returns their mean, an estimate of the posterior mean (the least squared error)."""
+        self._check_types(cond)
         cond = cond.repeat(samples)
         b, v, _, h, w = cond.views.shape
         noise = torch.randn((b, v, LATENT_CHANNELS, h, w),
                             generator=torch.Generator().manual_seed(seed)).to(cond.views.device)
-        uncond = cond.unconditional()
+        uncond = cond.unconditional(self.null_type)
         denoise = edm.guided(lambda x, s: self.denoise(x, s, cond), lambda x, s: self.denoise(x, s, uncond),
                              guidance)
         x = edm.heun_sample(denoise, noise, steps, progress, self.net.cfg.sigma_max)

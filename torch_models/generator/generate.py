@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import json
 import math
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
 
@@ -17,10 +16,11 @@ from torch import Tensor
 from richmat_addon.core.enhancement_types import METAL_REMAP
 from richmat_addon.core.maps import PbrInputs, ParamMap
 from richmat_addon.core.prompt import prompt_type
+from richmat_addon.core.stage_clock import StageClock
 from richmat_addon.core.uv_raster import UvRaster, rasterize as uv_rasterize
 from . import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, guidance_for, text
 from .coverage import TextureSpace, choose_cameras
-from .dit import Conditions, LatentGenerator
+from .dit import TYPE_EMBEDDING, Conditions, LatentGenerator
 from .mesh_input import MeshInput
 from .prior import prior_latents
 from .projection import Projection, project, rim_trust
@@ -44,8 +44,11 @@ def load_generator(folder: Path = SHIPPED) -> tuple[LatentGenerator, GeneratorTr
         raise FileNotFoundError(f"{folder}: no trained generator here (weights.safetensors, state.json); "
                                 "run `python -m torch_models train-generator` first")
     cfg = GeneratorTrainConfig.from_dict(json.loads(state.read_text())["config"])
+    tensors = load_file(str(weights))
+    # the type count is the checkpoint's, not today's table's (state.json files before DitConfig.types lack it)
+    cfg = replace(cfg, model=replace(cfg.model, types=tensors[TYPE_EMBEDDING].shape[0] - 1))
     model = LatentGenerator(cfg.model)
-    model.load_state_dict(load_file(str(weights)))
+    model.load_state_dict(tensors)
     return model.eval().requires_grad_(False), cfg
 
 
@@ -96,7 +99,7 @@ class Generation:
     type: int
     guidance: float  # the classifier-free guidance it was sampled with
     warnings: list[str] = field(default_factory=list)
-    seconds: dict[str, float] = field(default_factory=dict)
+    seconds: dict[str, float] = field(default_factory=dict)  # wall seconds per stage (``StageClock.wall``)
 
     def coverage(self) -> dict[str, float]:
         """Shares of all the materials' chart texels seen by a view, inpainted, given the fallback."""
@@ -185,56 +188,51 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
     ``guard_energy`` False skips the energy guard (its scale maps are then all 1); ``samples`` > 1
     averages that many residuals (``LatentGenerator.sample``); ``cameras`` (at the model's resolution)
     replaces the ``views`` chosen to see the surface."""
-    times: dict[str, float] = {}
-    t0 = time.perf_counter()
-    type_, warnings = prompt_type(prompt, metallic=inp.metallic)
-    warnings += inp.warnings
-    if type_ in METAL_REMAP:
-        warnings += [f"material {m.name!r} is a metal: its prior takes Type {METAL_REMAP[type_]} instead"
-                     for m in inp.materials if m.metallic]
-    spaces = _texture_spaces(inp, type_, texture_size)
-    times["prior"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    clock = StageClock()
+    with clock.stage("prior"):
+        type_, warnings = prompt_type(prompt, metallic=inp.metallic)
+        warnings += inp.warnings
+        if type_ in METAL_REMAP:
+            warnings += [f"material {m.name!r} is a metal: its prior takes Type {METAL_REMAP[type_]} instead"
+                         for m in inp.materials if m.metallic]
+        spaces = _texture_spaces(inp, type_, texture_size)
     res = cfg.model.size
-    cams = cameras or choose_cameras(inp.mesh, [TextureSpace(s.charts) for s in spaces], views, cfg.corpus.views,
-                                     res, res * CHOICE_UPSAMPLE)
-    times["view_choice"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    bases = [s.base_color for s in spaces]
-    cond_views = render_intrinsics(inp.mesh, cams, bases, [s.prior for s in spaces], cfg.corpus.supersample,
-                                   [s.roughness_metalness for s in spaces] if inp.pbr_known else None)
-    cond = Conditions(cond_views.conditions(cond_views.latents)[None], text.embed([prompt]), torch.tensor([type_]))
-    times["condition_views"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    with clock.stage("view_choice"):
+        cams = cameras or choose_cameras(inp.mesh, [TextureSpace(s.charts) for s in spaces], views,
+                                         cfg.corpus.views, res, res * CHOICE_UPSAMPLE)
+    with clock.stage("condition_views"):
+        bases = [s.base_color for s in spaces]
+        cond_views = render_intrinsics(inp.mesh, cams, bases, [s.prior for s in spaces], cfg.corpus.supersample,
+                                       [s.roughness_metalness for s in spaces] if inp.pbr_known else None)
+        cond = Conditions(cond_views.conditions(cond_views.latents)[None], text.embed([prompt]),
+                          torch.tensor([type_]))
     guidance = guidance_for(type_) if guidance is None else guidance
-    residual = model.sample(cond, steps, seed, guidance, progress, samples)[0]
-    times["sampling"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    fine_cams = Cameras(res * PROJECTION_UPSAMPLE, cams.focal_px * PROJECTION_UPSAMPLE, cams.camera_to_world)
-    fine = render_intrinsics(inp.mesh, fine_cams, bases)
-    values = _upsample(residual.permute(0, 2, 3, 1), cond_views.coverage, PROJECTION_UPSAMPLE)
-    values = values * (fine.coverage > 0.5)[..., None]
-    fallback = diffuse_fallback_latent()
-    trust = rim_trust(fine, fine_cams, PROJECTION_UPSAMPLE // 2)  # half a model pixel from an edge
-    textures, projections = [], []
-    for index, space in enumerate(spaces):
-        prior = torch.from_numpy(space.prior)
-        # islands no view saw end on the diffuse fallback: their residual is fallback - prior
-        proj = project(values, fine, fine_cams, space.charts, fallback - prior, pixels=fine.material == index,
-                       trust=trust)
-        texture = (prior + proj.texture).clamp(-1.0, 1.0)  # the encoder's latent box
-        textures.append(texture.numpy().astype(np.float16).astype(np.float32))  # as the half-float EXRs hold it
-        projections.append(proj)
-    times["projection"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    texels = np.concatenate([t.reshape(-1, 1, 6) for t in textures])
-    energy = energy_guard(texels) if guard_energy else np.ones(texels.shape[:2], np.float32)
-    scales = np.split(energy.reshape(-1), np.cumsum([t.shape[0] * t.shape[1] for t in textures])[:-1])
-    times["energy_guard"] = time.perf_counter() - t0
+    with clock.stage("sampling"):
+        residual = model.sample(cond, steps, seed, guidance, progress, samples)[0]
+    with clock.stage("projection"):
+        fine_cams = Cameras(res * PROJECTION_UPSAMPLE, cams.focal_px * PROJECTION_UPSAMPLE, cams.camera_to_world)
+        fine = render_intrinsics(inp.mesh, fine_cams, bases)
+        values = _upsample(residual.permute(0, 2, 3, 1), cond_views.coverage, PROJECTION_UPSAMPLE)
+        values = values * (fine.coverage > 0.5)[..., None]
+        fallback = diffuse_fallback_latent()
+        trust = rim_trust(fine, fine_cams, PROJECTION_UPSAMPLE // 2)  # half a model pixel from an edge
+        textures, projections = [], []
+        for index, space in enumerate(spaces):
+            prior = torch.from_numpy(space.prior)
+            # islands no view saw end on the diffuse fallback: their residual is fallback - prior
+            proj = project(values, fine, fine_cams, space.charts, fallback - prior, pixels=fine.material == index,
+                           trust=trust)
+            texture = (prior + proj.texture).clamp(-1.0, 1.0)  # the encoder's latent box
+            textures.append(texture.numpy().astype(np.float16).astype(np.float32))  # as the half-float EXRs hold it
+            projections.append(proj)
+    with clock.stage("energy_guard"):
+        texels = np.concatenate([t.reshape(-1, 1, 6) for t in textures])
+        energy = energy_guard(texels) if guard_energy else np.ones(texels.shape[:2], np.float32)
+        scales = np.split(energy.reshape(-1), np.cumsum([t.shape[0] * t.shape[1] for t in textures])[:-1])
     materials = [MaterialLatents(m.name, t, s.prior, scale.reshape(t.shape[:2]), p, s.charts)
                  for m, t, s, scale, p in zip(inp.materials, textures, spaces, scales, projections)]
     generation = Generation(materials, (cond.prior[0] + residual).clamp(-1.0, 1.0), cams, type_, guidance, warnings,
-                            times)
+                            clock.wall)
     stats = generation.coverage()
     if stats["fallback"] > 0.05:
         warnings.append(f"{stats['fallback']:.0%} of the texels lie on UV islands no view saw: "

@@ -5,8 +5,10 @@ T times a white Lambertian, by a half-vector quadrature and by Monte Carlo); one
 that exceeds 1 is fitted again under an albedo penalty, and what still exceeds 1
 (the Monte Carlo estimate beyond 3 sigma) gets an energy scale < 1 for its f_neu,
 recorded in ``neural.json``. A decoder that is bounded by construction
-(``decoder.bounded``: the hybrid without unit lobes) skips both: its fits and
-generated latents pass as they are, and ``furnace`` stays a measurement.
+(``decoder.bounded``: the hybrid, with or without unit lobes, unless its unit lobes
+divide by a table that reads short of a lobe's albedo, as Cycles' own does) skips
+both: its fits and generated latents pass as they are, and ``furnace`` stays a
+measurement.
 """
 from __future__ import annotations
 

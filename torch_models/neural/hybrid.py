@@ -154,13 +154,19 @@ class HybridDecoder(nn.Module):
         lobes = self.head_at(latent, wi)
         return self.lobe_sum(lobes, latent, wi, wo), lobes.weights[:, self.t_slot:self.t_slot + 1], lobes.r
 
-    def lobe_sum(self, lobes: Lobes, latent: Tensor, wi: Tensor, wo: Tensor) -> Tensor:
+    def gates_at(self, latent: Tensor, wi: Tensor, wo: Tensor) -> Tensor:
+        """(N, slots, 3) the gates of the GGX lobes, the diffuse lobe [and the sheen] at (wi, wo)."""
+        gates = torch.sigmoid(self.gates(torch.cat([latent, direction_features(wi, wo)], -1)))
+        return gates.reshape(-1, self.lobes + 1 + self.sheen, 3)
+
+    def lobe_sum(self, lobes: Lobes, latent: Tensor, wi: Tensor, wo: Tensor, gates: Tensor | None = None) -> Tensor:
         """f_neu cos (N, 3) of the predicted lobes, gated: all K GGX lobes at once, sharing the
         half vector and the Schlick term (the same D, G2 as ``ggx.ggx_single_scatter``); what
-        depends on wi alone comes precomputed in ``lobes``."""
+        depends on wi alone comes precomputed in ``lobes``. ``gates`` (N, slots, 3) replaces the
+        gate network's (the closure form's gates, constant over wo)."""
         k = self.lobes
-        gates = torch.sigmoid(self.gates(torch.cat([latent, direction_features(wi, wo)], -1)))
-        gates = gates.reshape(-1, k + 1 + self.sheen, 3)
+        if gates is None:
+            gates = self.gates_at(latent, wi, wo)
         h = safe_normalize(wi + wo)
         a2 = lobes.alpha.square()  # (N, K)
         cos_o = cos_theta(wo).clamp(min=1e-12)

@@ -1,11 +1,13 @@
-"""Path-traced preview ball (or any G-buffer) under an environment probe, with MIS.
+"""Path-traced preview ball (or any G-buffer) under an environment probe, with MIS, and a sun.
 
 The ball is convex and alone, so every path ends after one bounce: a direction
 below a point's horizon would hit the ball itself and is already zero in the
 BRDF, and everything above it sees the probe. Each sample per pixel takes one
 probe sample and one BSDF sample, combined with the power heuristic (Veach),
 which is what Cycles does for a world light with MIS. The background is black
-(alpha 0), as Cycles' transparent film composited over black.
+(alpha 0), as Cycles' transparent film composited over black. A sun (a delta
+directional light, Cycles' Sun lamp at angle 0) adds f cos times its irradiance;
+the ball cannot shadow itself where its BRDF is non-zero.
 """
 from __future__ import annotations
 
@@ -85,9 +87,25 @@ def direct_light(bsdf: Bsdf, env: EnvMap, wi: Tensor, frame: tuple[Tensor, Tenso
     return torch.nan_to_num(light + reflected, nan=0.0, posinf=0.0)
 
 
-def render_ball(bsdf_at: BsdfAt, env: EnvMap, scene: PreviewScene = PreviewScene(),
-                spp: int = 64, seed: int = 0, max_rays: int = 1 << 18) -> RenderResult:
-    """Render the preview ball; deterministic for a given seed.
+@dataclass(frozen=True)
+class Sun:
+    """A directional light: the unit world direction towards it and its irradiance (Cycles' Strength)."""
+
+    direction: tuple[float, float, float]
+    irradiance: float
+
+
+def sun_light(bsdf: Bsdf, sun: Sun, wi: Tensor, frame: tuple[Tensor, Tensor, Tensor]) -> Tensor:
+    """Radiance (N, 3) towards wi from the sun alone."""
+    d = torch.tensor(sun.direction, dtype=wi.dtype)
+    wo = torch.stack([(frame[i] * d).sum(-1) for i in range(3)], -1)
+    return bsdf.eval(wi, wo) * sun.irradiance
+
+
+def render_ball(bsdf_at: BsdfAt, env: EnvMap | None, scene: PreviewScene = PreviewScene(),
+                spp: int = 64, seed: int = 0, max_rays: int = 1 << 18, sun: Sun | None = None) -> RenderResult:
+    """Render the preview ball lit by the probe (``env``, or none: a black world) and ``sun``;
+    deterministic for a given seed.
 
     Samples are traced in batches of whole sample passes (up to ``max_rays``
     camera rays at once): torch's per-call overhead, not arithmetic, dominates
@@ -117,7 +135,12 @@ def render_ball(bsdf_at: BsdfAt, env: EnvMap, scene: PreviewScene = PreviewScene
             t, b = shading_basis(n)
             view = -d[idx]
             wi = torch.stack([(view * t).sum(-1), (view * b).sum(-1), (view * n).sum(-1)], -1)
-            radiance = direct_light(bsdf_at(n), env, wi, (t, b, n), u[idx, 2:6], u[idx, 6:9])
+            bsdf = bsdf_at(n)
+            radiance = torch.zeros(len(idx), 3)
+            if env is not None:
+                radiance += direct_light(bsdf, env, wi, (t, b, n), u[idx, 2:6], u[idx, 6:9])
+            if sun is not None:
+                radiance += sun_light(bsdf, sun, wi, (t, b, n))
             total.index_add_(0, pixels[idx], radiance)
     shape = (scene.resolution, scene.resolution)
     rgb = (total / spp).reshape(*shape, 3).numpy()

@@ -1,4 +1,5 @@
-"""The sweeps of bench/neural_failure_modes.py move one parameter, monotonically, and nothing else."""
+"""The sweeps of bench/neural_failure_modes.py move one parameter, monotonically, and nothing else
+(a bench's own test, collected by ``make test`` beside tests/)."""
 from __future__ import annotations
 
 import numpy as np

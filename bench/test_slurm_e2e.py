@@ -1,6 +1,7 @@
 """The parts of bench/slurm_e2e.py that need no SLURM: its slurm.conf, its parsing of SLURM's
 output, the ledger merge it compares with a single-process run, and the sbatch file's
-argument pass-through (run with bash against a stand-in Python)."""
+argument pass-through (run with bash against a stand-in Python). Collected by ``make test``
+beside tests/: a bench's own tests live beside it, since tests/ never imports bench/."""
 from __future__ import annotations
 
 import os
@@ -12,6 +13,7 @@ import pytest
 from bench import slurm_e2e
 from bench.slurm_e2e import (BAD, SBATCH, SBATCH_ARGS, expand_tasks, key_values, merged_outcomes,
                              outcome_differences, slurm_conf)
+from support.paths import shared_assets_or_skip
 
 SLURMD_C = ("NodeName=vm CPUs=2 Boards=1 SocketsPerBoard=1 CoresPerSocket=2 ThreadsPerCore=1 "
             "RealMemory=24105")
@@ -102,7 +104,8 @@ def test_sbatch_passes_arguments_after_output_to_render_dataset(tmp_path: Path) 
     assert _sbatch_argv(tmp_path, "IN", "OUT", workers="1")[5:] == SBATCH_ARGS
 
 
-def test_inputs_give_the_cancelled_task_two_good_assets(tmp_path: Path, shared_assets: Path) -> None:
+def test_inputs_give_the_cancelled_task_two_good_assets(tmp_path: Path) -> None:
+    shared_assets_or_skip()  # the inputs copy the sample assets
     slurm_e2e.build_inputs(tmp_path / "inputs")
     layout = slurm_e2e.plan(tmp_path / "inputs", 3)
     assert set(BAD) <= set(layout["assets"])

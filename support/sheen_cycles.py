@@ -1,4 +1,4 @@
-"""Blender side of bench/calibrate_sheen.py: measure Cycles' sheen closure.
+"""Blender side of a sheen measurement (bench/calibrate_sheen.py, tests/test_sheen_cycles.py): Cycles' sheen closure.
 
 Spheres of the sheen lobe alone (one per roughness), plus one white Lambertian
 sphere, seen by an orthographic camera (every pixel has the same view direction
@@ -6,7 +6,7 @@ sphere, seen by an orthographic camera (every pixel has the same view direction
 f(wi, wo) cos(theta_o) times the sun's strength, without noise). One render per
 sun direction.
 
-    python -m bench.sheen_cycles JOB.json
+    python -m support.sheen_cycles JOB.json
 JOB.json: {"roughness": [...], "suns": [[x, y, z], ...], "px_per_unit": P, "out": DIR}
 writes DIR/sun_<k>.exr and DIR/layout.json (sphere centres in pixels, radius in pixels).
 """

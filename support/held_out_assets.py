@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.common import REPO
+from support.paths import SHARED_ASSETS
 from richmat_addon.core.captions import caption
 from richmat_addon.core.enhance import baseline
 from torch_models.dataset import BatchDataset
@@ -24,7 +24,7 @@ from torch_models.generator.mesh_input import MeshInput, load_mesh
 from torch_models.generator.prior import pbr_inputs, prior_material
 from torch_models.generator.train import GeneratorTrainConfig
 
-SAMPLE_MODELS = REPO.parent / "shared" / "assets" / "models"
+SAMPLE_MODELS = SHARED_ASSETS / "models"
 
 
 @dataclass

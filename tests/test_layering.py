@@ -1,0 +1,136 @@
+"""The import graph of the repository's Python, read from the source (every import, also inside functions):
+no import cycles, no arrow from a lower floor to a higher one, and tests/ and bench/ never import each other
+(what both need lives in support/)."""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+PACKAGES = ("richmat_addon", "torch_models", "batch", "tools", "support", "bench", "tests")
+# What each part may import besides itself: the add-on's core is the lowest floor (no bpy, no torch), the
+# torch backend never reaches the bpy side, the farm sits on both, and the shared test support sits under
+# the benches and the tests, which are two rooms that do not see each other.
+MAY_IMPORT = {
+    "richmat_addon.core": (),
+    "richmat_addon.blender": ("richmat_addon.core",),
+    "richmat_addon": ("richmat_addon.core", "richmat_addon.blender"),
+    "torch_models": ("richmat_addon.core",),
+    "batch": ("richmat_addon", "torch_models"),
+    "tools": ("richmat_addon", "torch_models"),  # the scripts that regenerate shipped tables
+    "support": ("richmat_addon", "torch_models", "batch"),
+    "bench": ("richmat_addon", "torch_models", "batch", "support"),
+    "tests": ("richmat_addon", "torch_models", "batch", "tools", "support"),
+}
+
+
+def _modules() -> dict[str, Path]:
+    found = {}
+    for package in PACKAGES:
+        for path in sorted((REPO / package).rglob("*.py")):
+            parts = path.relative_to(REPO).with_suffix("").parts
+            found[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return found
+
+
+def _imported(name: str, path: Path, node: ast.Import | ast.ImportFrom, modules: dict[str, Path]) -> set[str]:
+    """The repository modules an import statement loads (the innermost existing module of each name)."""
+    if isinstance(node, ast.Import):
+        names = [alias.name for alias in node.names]
+    else:
+        base = name.split(".")
+        if node.level:  # relative to the module's package
+            base = base[:len(base) - node.level + (path.name == "__init__.py")]
+            base += node.module.split(".") if node.module else []
+        else:
+            base = node.module.split(".")
+        prefix = ".".join(base)
+        names = [f"{prefix}.{alias.name}" if f"{prefix}.{alias.name}" in modules else prefix for alias in node.names]
+    out = set()
+    for full in names:
+        while full and full not in modules:
+            full = full.rpartition(".")[0]
+        if full and full != name:
+            out.add(full)
+    return out
+
+
+def import_graph() -> dict[str, set[str]]:
+    modules = _modules()
+    graph = {}
+    for name, path in modules.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        graph[name] = set().union(*(_imported(name, path, n, modules) for n in ast.walk(tree)
+                                    if isinstance(n, (ast.Import, ast.ImportFrom))))
+    return graph
+
+
+def _part(module: str) -> str:
+    return max((p for p in MAY_IMPORT if module == p or module.startswith(p + ".")), key=len)
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan), leaving out a package and its
+    own module importing each other (a package's ``__init__`` naming a submodule is no design cycle)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while not component or component[-1] != v:
+                component.append(stack.pop())
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return [c for c in found if not (len(c) == 2 and c[1].startswith(c[0] + "."))]
+
+
+def arrows_up(graph: dict[str, set[str]]) -> list[tuple[str, str]]:
+    """The imports of a part that ``MAY_IMPORT`` does not allow it."""
+    def allowed(a: str, b: str) -> bool:
+        return _part(a) == _part(b) or any(_part(b) == p or _part(b).startswith(p + ".") for p in MAY_IMPORT[_part(a)])
+
+    return sorted((a, b) for a, targets in graph.items() for b in targets if not allowed(a, b))
+
+
+@pytest.fixture(scope="module")
+def graph() -> dict[str, set[str]]:
+    return import_graph()
+
+
+def test_no_import_cycles(graph: dict[str, set[str]]) -> None:
+    assert cycles(graph) == []
+
+
+def test_no_arrow_up_and_no_bench_tests_imports(graph: dict[str, set[str]]) -> None:
+    assert arrows_up(graph) == []
+
+
+def test_the_reader_sees_what_it_checks(graph: dict[str, set[str]]) -> None:
+    """The checks above judge a graph the reader built right: known arrows are in it, and a planted
+    cycle and a planted arrow up are found."""
+    assert "richmat_addon.core.enhancement_types" in graph["richmat_addon.core.enhance"]  # from .x import
+    assert "torch_models.generator.edm" in graph["torch_models.generator.dit"]  # from . import x
+    assert "support.blender_child" in graph["tests.conftest"]
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": set()}) == [["a", "b", "c"]]
+    assert cycles({"p": {"p.x"}, "p.x": {"p"}}) == []
+    planted = {"richmat_addon.core.a": {"torch_models.b"}, "torch_models.b": {"richmat_addon.core.a"},
+               "tests.c": {"bench.d"}, "bench.d": {"support.e"}, "support.e": set()}
+    assert arrows_up(planted) == [("richmat_addon.core.a", "torch_models.b"), ("tests.c", "bench.d")]
+    assert _part("richmat_addon.core.enhance") == "richmat_addon.core" and _part("bench.common") == "bench"
