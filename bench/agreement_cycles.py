@@ -19,25 +19,9 @@ from pathlib import Path
 import bpy
 
 from support.agreement_cases import Case
+from support.osl_script import script_material
 from richmat_addon.blender import cycles_builder, preview_scene
-from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
 from richmat_addon.core.preview import PreviewScene
-
-
-def script_material(name: str, source: str) -> bpy.types.Material:
-    """A material whose surface is one Script node compiled from the OSL ``source``, output ``out``."""
-    prefer_blender_bundled_modules()  # assigning the script runs Cycles' update, which imports oslquery
-    material = bpy.data.materials.new(name)
-    tree = material.node_tree
-    tree.nodes.clear()
-    text = bpy.data.texts.new(f"{name}.osl")
-    text.from_string(source)
-    script = tree.nodes.new("ShaderNodeScript")
-    script.mode, script.script = "INTERNAL", text
-    cycles_builder.compile_script_node(script)
-    output = tree.nodes.new("ShaderNodeOutputMaterial")
-    tree.links.new(script.outputs["out"], output.inputs["Surface"])
-    return material
 
 
 def main(job_path: Path) -> None:

@@ -1,9 +1,9 @@
 """The MaterialX export rendered by an outside generator against the add-on's own OSL, both in Cycles.
 
 For the plain grey control (core.enhance.baseline of a grey PBR material) and
-drawn materials of Types 0-5 (bench/agreement_cases.py), the add-on writes its
+drawn materials of Types 0-5 (support/agreement_cases.py), the add-on writes its
 MaterialX document (core/mtlx.py), MaterialX's own OSL generator from the
-``materialx`` wheel turns the file into OSL (bench/mtlx_osl.py), and Cycles renders
+``materialx`` wheel turns the file into OSL (support/mtlx_osl.py), and Cycles renders
 that shader on the preview ball. The reference is the add-on's OSL shader
 (core/osl.py) in the same scene. All renders run in Cycles on the CPU, one
 thread, through bench/agreement_cycles.py.
@@ -11,7 +11,7 @@ thread, through bench/agreement_cycles.py.
 The MaterialX shader renders twice: as generated, and with its ``*_distribution``
 inputs set to Cycles' energy-compensated GGX (``"multi_ggx"``; genosl passes
 MaterialX's ``"ggx"``, which Cycles renders single-scatter, see
-bench/mtlx_osl.with_distribution).
+support/mtlx_osl.with_distribution).
 
 The reference renders at ``--seed``; the MaterialX shaders render at the next
 seed, and so does the add-on's shader a second time: that pair's FLIP is the
@@ -38,10 +38,10 @@ import MaterialX as mx
 import numpy as np
 
 from bench.agreement import DEFAULT_PROBE, render_cycles, reused_cycles
-from bench.agreement_cases import Case, cases
 from bench.common import FLIP_CONVENTION, add_out_argument, pyplot, save_chart, write_report
-from bench.mtlx_osl import cycles_source, with_distribution
 from bench.native_agreement import labelled_sheet
+from support.agreement_cases import Case, cases
+from support.mtlx_osl import cycles_source, with_distribution
 from richmat_addon.core import mtlx
 from richmat_addon.core.enhance import baseline
 from richmat_addon.core.folder_io import read_exr

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 from tests.test_osl import COATED, TYPE0, TYPE5, make_material, write_png
 
-from bench import mtlx_osl
 from richmat_addon.core import graph, mtlx
+from support import mtlx_osl
+from support.paths import REPO
 
 METAL_MIX = {**TYPE0, "metalness": 0.5, "spec_color": (0.9, 0.6, 0.3), "edge_tint": 0.8}
 
@@ -143,15 +144,11 @@ def test_blenders_materialx_reads_and_validates(blender_run, textured, tmp_path)
     assert result["problems"] == []
 
 
+
 def test_genosl_shader_compiles_and_renders_in_cycles(blender_run, textured, tmp_path):
     """MaterialX's OSL generator on exported documents: Cycles compiles what it writes once the wheel's
     headers are inlined (not before), and with its distribution inputs set to Cycles' energy-compensated
     GGX the shader renders the ball as the add-on's own OSL does; as generated ("ggx") it is darker."""
-    import json
-    from dataclasses import asdict
-
-    from bench.agreement import DEFAULT_PROBE
-    from bench.agreement_cases import Case
     from richmat_addon.core.folder_io import read_exr
 
     def exported(mat: Any, paths: dict[str, str]) -> str:
@@ -165,39 +162,43 @@ def test_genosl_shader_compiles_and_renders_in_cycles(blender_run, textured, tmp
     ready = mtlx_osl.inline_includes(raw)
     assert "#include" not in ready and "#pragma once" not in ready and "struct vector2" in ready
     constant = make_material("type5_constant", TYPE5)
-    case = Case(constant.name, "surface", {k: [float(x) for x in m.value] for k, m in constant.params.items()},
-                [float(x) for x in constant.base_color.value])
-    (tmp_path / "raw.osl").write_text(raw)
-    (tmp_path / "ready.osl").write_text(ready)
     generated = mtlx_osl.inline_includes(exported(constant, {}))
-    (tmp_path / "case.osl").write_text(generated)
-    (tmp_path / "case_multi_ggx.osl").write_text(mtlx_osl.with_distribution(generated, "multi_ggx"))
-    renders = {}
-    for which, osl in (("addon", {}), ("mtlx", {case.name: str(tmp_path / "case.osl")}),
-                       ("multi_ggx", {case.name: str(tmp_path / "case_multi_ggx.osl")})):
-        (tmp_path / which).mkdir()
-        (tmp_path / which / "job.json").write_text(json.dumps({
-            "cases": [asdict(case)], "probe": str(DEFAULT_PROBE), "resolution": 32, "samples": 64, "seed": 0,
-            "out": str(tmp_path / which), "osl": osl, "threads": 1}))
-        renders[which] = tmp_path / which / f"{case.name}.exr"
+    sources = {"raw": raw, "ready": ready, "mtlx": generated,
+               "multi_ggx": mtlx_osl.with_distribution(generated, "multi_ggx")}
+    for name, source in sources.items():
+        (tmp_path / f"{name}.osl").write_text(source)
+    probe = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
     result = blender_run(f"""
         import json
         from pathlib import Path
-        from bench import agreement_cycles
+        import bpy
+        from richmat_addon.blender import cycles_builder, preview_scene
+        from richmat_addon.core.preview import PreviewScene
+        from support.osl_script import script_material
+        from tests.test_osl import TYPE5, make_material
+        folder = Path({str(tmp_path)!r})
         compiled = {{}}
         for name in ("raw", "ready"):
             try:
-                material = agreement_cycles.script_material(name, Path({str(tmp_path)!r}, name + ".osl").read_text())
+                material = script_material(name, (folder / f"{{name}}.osl").read_text())
                 compiled[name] = [s.identifier for s in material.node_tree.nodes["Script"].inputs]
             except RuntimeError as error:
                 compiled[name] = str(error)
         for which in ("addon", "mtlx", "multi_ggx"):
-            agreement_cycles.main(Path({str(tmp_path)!r}, which, "job.json"))
+            bpy.ops.wm.read_factory_settings(use_empty=True)
+            scene = bpy.context.scene
+            cycles_builder.enable_osl(scene)
+            if which == "addon":
+                material = cycles_builder.build_material(make_material("type5_constant", TYPE5), {{}})
+            else:
+                material = script_material(which, (folder / f"{{which}}.osl").read_text())
+            preview_scene.setup(scene, PreviewScene(resolution=32), Path({str(probe)!r}), material, 64)
+            preview_scene.render_exr(scene, folder / f"{{which}}.exr")
         print("RESULT " + json.dumps(compiled))
     """)
     assert "'mx_funcs.h' file not found" in result["raw"]
     assert {"tex_base_color_file", "tex_scatter_color_file", "dust_weight", "coat_ior"} <= set(result["ready"])
-    addon, ours, compensated = (read_exr(renders[w]) for w in ("addon", "mtlx", "multi_ggx"))
+    addon, ours, compensated = (read_exr(tmp_path / f"{w}.exr") for w in ("addon", "mtlx", "multi_ggx"))
     ball = addon[..., 3] > 0.5
     assert np.array_equal(ball, ours[..., 3] > 0.5)
     mean_addon, mean_ours, mean_compensated = (x[ball, :3].mean(0) for x in (addon, ours, compensated))
