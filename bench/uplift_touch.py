@@ -22,8 +22,9 @@ from pathlib import Path
 
 from bench.addon_assets import SCENE, read_png
 from bench.common import REPORTS, add_out_argument, write_report
-from tests.conftest import SHARED_ASSETS, run_blender
-from tests.test_addon_extension import build_extension, script
+from support.blender_child import run_blender
+from support.paths import SHARED_ASSETS
+from support.extension import build_extension, script
 from torch_models.demo_render import captioned_row, save_sheet, to_u8
 from torch_models.neural.evaluate import DEFAULT_PROBE
 
