@@ -15,7 +15,7 @@ from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.texel_vectors import normalise, texel_matrix
 from torch_models.cli import main
-from torch_models.neural import energy, fitting, loss, material_vectors, quadrature
+from torch_models.neural import energy, fit_error, fitting, loss, material_vectors, quadrature, weights
 from tests.test_neural_training import TINY
 
 
@@ -53,6 +53,11 @@ def test_fit_writes_latent_textures_and_fits_each_vector_once(tiny_weights: Path
         == counts["checked"] == record["fitted_vectors"]
     # what the farm prices a fit by: CPU seconds per part, the energy check split into its own
     assert {"read", "fit", "energy", "energy_check"} <= record["cpu_s"].keys() <= record["timings_s"].keys()
+    # the fit error the add-on shows: one number, the texels' mean of the map beside the latents
+    error = neural_folder.read(out).fit_error
+    texels = read_exr(out / neural_folder.ERROR_FILE)
+    assert error is not None and error.map == out / neural_folder.ERROR_FILE and texels.shape == (8, 8, 1)
+    assert np.isfinite(texels).all() and abs(float(texels.mean()) - error.mean) < 1e-3 * max(1.0, error.mean)
 
 
 def test_a_coarser_cluster_step_fits_fewer_vectors(tiny_weights: Path, textured: Path, tmp_path: Path) -> None:
@@ -260,3 +265,19 @@ def test_fitting_applies_the_decoders_angular_floor(tiny_weights: Path, tmp_path
     at_floor = angular_floor(mirror, 0.02).numpy()
     assert torch.equal(fitting.fit_latents(floored, mirror, 5), fitting.fit_latents(floored, at_floor, 5))
     assert not torch.equal(fitting.fit_latents(model, mirror, 5), fitting.fit_latents(model, at_floor, 5))
+
+
+def test_the_fit_error_is_higher_for_latents_of_other_materials() -> None:
+    """The shipped decoder's fitted latents against the same latents given to the wrong materials:
+    the readout must tell the bad ones apart, each material and on average."""
+    from bench.agreement_cases import cases
+
+    torch.manual_seed(0)
+    model = weights.load(weights.SHIPPED)
+    vectors = np.stack([c.vector() for c in cases(1, 1, 0)])
+    z = fitting.fit_latents(model, vectors, 100)
+    ones = torch.ones(len(z))
+    fitted = fit_error.vector_errors(model, vectors, z, ones)
+    wrong = fit_error.vector_errors(model, vectors, z.roll(1, 0), ones)
+    assert (fitted < wrong).all() and fitted.mean() < 0.5 * wrong.mean()
+    assert np.array_equal(fitted, fit_error.vector_errors(model, vectors, z, ones))  # seeded: the same number

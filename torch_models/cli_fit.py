@@ -4,8 +4,9 @@ MATERIAL_DIR is a folder written by ``enhance`` (params.json and parameter EXRs)
 Writes OUT/latent_0.exr and OUT/latent_1.exr (latent channels 0-2 and 3-5 at
 the material's texture resolution) or, for a constant material, the latent in
 OUT/neural.json, which also records the decoder's digest, how many distinct
-vectors were fitted, the loss, the white-furnace result and the wall and CPU
-seconds of reading, fitting and the energy check. Ctrl-C saves the state;
+vectors were fitted, the loss, the white-furnace result, the fit error (its
+mean; the per-texel map is OUT/fit_error.exr) and the wall and CPU seconds of
+reading, fitting, the energy check and the error measure. Ctrl-C saves the state;
 ``--resume`` continues it.
 
 ``--progress jsonl`` replaces the progress bar with one JSON object per line on
@@ -42,10 +43,11 @@ def run(args: argparse.Namespace) -> int:
     from safetensors.torch import load_file, save_file
     from tqdm import tqdm
 
+    from richmat_addon.core.fit_error import grade
     from richmat_addon.core.stage_clock import StageClock
 
     from .cli import InputError, atomic_path, emit, emit_done
-    from .neural import energy, fitting, material_vectors, weights
+    from .neural import energy, fit_error, fitting, material_vectors, weights
 
     jsonl = args.progress == "jsonl"
     clock = StageClock()
@@ -90,12 +92,14 @@ def run(args: argparse.Namespace) -> int:
     refit_steps = min(energy.REFIT_STEPS, args.steps)
     with clock.stage("energy"):
         bounded = energy.fit_bounded(model, mv.unique, z, seed=args.seed, steps=refit_steps)
+    with clock.stage("error"):
+        errors = fit_error.vector_errors(model, mv.unique, bounded.z, bounded.check.energy_scale(), seed=args.seed)
     timed = clock.record(whole_process=False)
     for kind, parts in bounded.seconds.items():  # the energy check's own split: check, refit, recheck
         timed[kind].update({f"energy_{part}": value for part, value in parts.items()})
     record = material_vectors.write_fit(args.out, mv, bounded, model.digest, {
         "material": os.path.relpath(args.material, args.out), "steps": args.steps, "refit_steps": refit_steps,
-        "final_loss": latest["loss"], **timed})
+        "final_loss": latest["loss"], **timed}, errors=errors)
     state.unlink(missing_ok=True)
     if jsonl:
         emit_done(args.out)
@@ -103,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"fitted {len(mv.unique)} vectors ({mv.exact_unique} exact) for {record['texels']} texels; "
           f"furnace: {record['furnace']['passed_as_fitted']}/{len(z)} pass as fitted, "
           f"{record['furnace']['passed_after_refit']} after the energy refit, "
-          f"{record['furnace']['repaired_by_scaling']} scaled; wrote {args.out}")
+          f"{record['furnace']['repaired_by_scaling']} scaled; fit error {record['fit_error']['mean']:.3f} "
+          f"({grade(record['fit_error']['mean'])}); wrote {args.out}")
     return 0
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 import bpy
 from bpy.app.handlers import persistent
 
-from . import neural_assets, operators, panels, preview_neural, props, uplift
+from . import fit_error_view, neural_assets, operators, panels, preview_neural, props, uplift
 
 _CLASSES = (*props.CLASSES, neural_assets.RichmatPreferences, *operators.CLASSES,
-            preview_neural.RICHMAT_OT_preview_neural, *panels.CLASSES)
+            preview_neural.RICHMAT_OT_preview_neural, fit_error_view.RICHMAT_OT_show_fit_error, *panels.CLASSES)
 _checked: list[tuple[str, int]] = []  # (graph Cycles can run, materials in the file) at the last check
 
 

@@ -10,7 +10,7 @@ import bpy
 
 from ..core import schema
 from ..core.enhancement_types import TYPES
-from . import cycles_builder, preview_neural, uplift
+from . import cycles_builder, fit_error_view, preview_neural, uplift
 
 _LOBE_TITLES = {"dust": "Dust / Fuzz", "coat": "Clearcoat", "conductor": "Conductor", "mix": "Metalness",
                 "specular": "Core / Haze", "dielectric": "Dielectric", "inner": "Inner Scattering",
@@ -43,6 +43,7 @@ def draw_richmat(layout: bpy.types.UILayout, context: bpy.types.Context) -> None
     col.operator("richmat.bake_parameters", icon="RENDER_STILL")
     col.prop(s, "fit_steps")
     col.operator("richmat.fit_neural", icon="NETWORK_DRIVE")
+    draw_fit_error(col, context)
     col.prop(s, "prompt")
     col.prop(s, "generate_steps")
     col.operator("richmat.generate_material", icon="MATERIAL")
@@ -51,6 +52,20 @@ def draw_richmat(layout: bpy.types.UILayout, context: bpy.types.Context) -> None
     enhanced = _enhanced(context)
     if enhanced is not None:
         draw_parameters(layout, enhanced)
+
+
+def draw_fit_error(layout: bpy.types.UILayout, context: bpy.types.Context) -> None:
+    """Each fitted material's fit error and grade, and the error map toggle."""
+    obj = context.active_object
+    if obj is None or obj.type != "MESH":
+        return
+    lines = fit_error_view.readout(obj, context.scene.richmat.all_slots)
+    for text, icon in lines:
+        layout.label(text=text, icon=icon)
+    shown = fit_error_view.showing(obj)
+    if lines or shown:
+        layout.operator("richmat.show_fit_error", icon="HIDE_ON" if shown else "COLORSET_01_VEC",
+                        text="Hide Fit Error Map" if shown else "Show Fit Error Map")
 
 
 def draw_parameters(layout: bpy.types.UILayout, enhanced: bpy.types.Material) -> None:

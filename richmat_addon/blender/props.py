@@ -56,6 +56,9 @@ class RichmatMaterialSettings(bpy.types.PropertyGroup):
     record: bpy.props.StringProperty(name="Record", description="Enhancement settings (JSON)")
     bake_dir: bpy.props.StringProperty(name="Baked Folder", subtype="DIR_PATH")
     neural_dir: bpy.props.StringProperty(name="Neural Folder", subtype="DIR_PATH")
+    shown_over: bpy.props.PointerProperty(
+        type=bpy.types.Material, name="Shown Over",
+        description="The material a fit error map replaced in the slots; hiding the map puts it back")
 
 
 CLASSES = (RichmatSceneSettings, RichmatMaterialSettings)
