@@ -107,9 +107,12 @@ def _uniform_hemisphere(n: int, gen: torch.Generator) -> Tensor:
     return v / v.norm(dim=-1, keepdim=True)
 
 
-def make_batch(pool: Tensor, n: int, gen: torch.Generator) -> Batch:
-    """A batch of n (material, wi, wo) samples from a pool of parameter vectors."""
-    index = torch.randint(len(pool), (n,), generator=gen)
+def make_batch(pool: Tensor, n: int, gen: torch.Generator, index: Tensor | None = None) -> Batch:
+    """A batch of n (material, wi, wo) samples from a pool of parameter vectors: of random
+    materials, or of the rows ``index`` (n of them) where the caller chooses them."""
+    if index is None:
+        index = torch.randint(len(pool), (n,), generator=gen)
+    n = len(index)
     vectors = pool[index]
     wi = cosine_hemisphere(n, gen)
     grazing = torch.rand(n, generator=gen) < 0.2
