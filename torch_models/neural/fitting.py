@@ -77,16 +77,16 @@ def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int 
     opt = torch.optim.Adam([z], lr=1e-2)
     gen = torch.Generator().manual_seed(seed)
     chunks = target_buffer(pool, batch, per_vector, steps, gen)
-    shares = [len(c[0].index) / sum(len(c[0].index) for c in chunks) for c in chunks]
     with deterministic():
         for step in range(steps):
             opt.zero_grad()
-            total = 0.0
-            for share, buffer in zip(shares, chunks):
+            total, samples = 0.0, 0
+            for buffer in chunks:
                 b = buffer[step % len(buffer)]
                 loss = fitting_loss(model, z[b.index], b)
                 loss.backward()
-                total += share * loss.item()
+                total, samples = total + loss.item() * len(b.index), samples + len(b.index)
+            total /= samples
             if penalty is not None:
                 extra = penalty(step, z)
                 extra.backward()
