@@ -14,9 +14,9 @@
    folders, as ``batch/fit_job.py`` runs it (read and merge, fit), CPU-timed here, and
    its accuracy: per textured material, the 32 x 32 texel crop with the most distinct
    vectors (where merging has the most to lose), as a flat patch seen from 45 degrees
-   under the probe (``bench/dedupe.py``), analytic against neural, LDR-FLIP. The fit
-   shares a fixed budget of samples among the vectors it fits, so merging changes its
-   accuracy as well as its cost.
+   under the probe (``bench/dedupe.py``), analytic against neural, LDR-FLIP. Past a
+   few thousand vectors the fit gives each its own samples, so merging changes its cost
+   (``bench/fit_budget.py`` measures the budget itself).
 
 The cost model prices 10 000 assets and the paper's 10 640-asset dataset on 16-core
 nodes from the mean CPU seconds per asset, before and after.

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 
 import numpy as np
 import torch
@@ -17,7 +18,9 @@ from .data import Batch, angular_floor, make_batch
 from .loss import decoder_loss
 from .weights import NeuralModel
 
-FIT_BATCH = 16384  # (texel, wi, wo) samples per Adam step, shared by all vectors fitted together
+FIT_BATCH = 16384  # (texel, wi, wo) samples per Adam step at least, shared by the vectors fitted together
+SAMPLES_PER_VECTOR = 4  # per Adam step and vector at least: a vector's samples do not shrink as textures grow
+CHUNK_SAMPLES = 65536  # samples per forward pass at most; beyond, the vectors are stepped in chunks
 FIT_BUFFER = 24  # batches of analytic targets drawn per fit, then reused
 
 
@@ -31,13 +34,39 @@ def fitting_loss(model: NeuralModel, z: Tensor, batch: Batch) -> Tensor:
     return decoder_loss(model.decoder, z, batch, relative_weight=model.relative_weight, t_weight=model.t_weight)
 
 
+def sample_plan(count: int, batch: int, per_vector: int) -> list[Tensor] | None:
+    """Rows of each chunk's samples for ``count`` vectors, each ``per_vector`` times per step, in
+    chunks of at most ``CHUNK_SAMPLES``; None where ``batch`` random rows give every vector that
+    many on average (few vectors: they share one batch, as they always did)."""
+    if per_vector * count <= batch:
+        return None
+    rows = max(1, CHUNK_SAMPLES // per_vector)
+    return [torch.arange(lo, min(lo + rows, count)).repeat(per_vector) for lo in range(0, count, rows)]
+
+
+def target_buffer(pool: Tensor, batch: int, per_vector: int, steps: int, gen: torch.Generator) -> list[list[Batch]]:
+    """Per chunk, the batches of analytic targets a fit cycles through (see ``sample_plan``).
+
+    Chunked buffers drop the vectors, which the loss does not read: at 1/256 a 1k
+    texture has tens of thousands of vectors, and the buffer is most of a fit's memory."""
+    draws = min(steps, FIT_BUFFER)
+    plan = sample_plan(len(pool), batch, per_vector)
+    if plan is None:
+        return [[make_batch(pool, batch, gen) for _ in range(draws)]]
+    return [[replace(make_batch(pool, len(rows), gen, rows), vectors=pool[:0]) for _ in range(draws)] for rows in plan]
+
+
 def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int = FIT_BATCH, seed: int = 0,
                 start: Tensor | None = None, progress=None,  # type: ignore[no-untyped-def]
-                penalty: Callable[[int, Tensor], Tensor] | None = None) -> Tensor:
+                penalty: Callable[[int, Tensor], Tensor] | None = None,
+                per_vector: int = SAMPLES_PER_VECTOR) -> Tensor:
     """Latents (K, 6) of K parameter vectors, from the encoder (or ``start``), optimised ``steps`` times.
 
-    Analytic targets cost far more than a decoder step, so ``FIT_BUFFER`` batches
-    are drawn once and cycled through (fewer when there are fewer steps).
+    Each step sees ``batch`` samples or ``per_vector`` per vector, whichever is more, so
+    that a vector's fit does not depend on how many others it is fitted with. Analytic
+    targets cost far more than a decoder step, so ``FIT_BUFFER`` batches are drawn once
+    and cycled through (fewer when there are fewer steps). Adam is per coordinate, so
+    stepping the chunks' summed gradients fits each chunk as if it were fitted alone.
     ``penalty(step, z)`` is added to the loss: a way to try other objectives
     (bench/fit_limits.py) without a second optimisation loop.
     """
@@ -47,19 +76,40 @@ def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int 
     z = z0.clone().requires_grad_(True)
     opt = torch.optim.Adam([z], lr=1e-2)
     gen = torch.Generator().manual_seed(seed)
-    buffer = [make_batch(pool, batch, gen) for _ in range(min(steps, FIT_BUFFER))]
+    chunks = target_buffer(pool, batch, per_vector, steps, gen)
     with deterministic():
         for step in range(steps):
-            b = buffer[step % len(buffer)]
-            loss = fitting_loss(model, z[b.index], b)
-            if penalty is not None:
-                loss = loss + penalty(step, z)
             opt.zero_grad()
-            loss.backward()
+            total, samples = 0.0, 0
+            for buffer in chunks:
+                b = buffer[step % len(buffer)]
+                loss = fitting_loss(model, z[b.index], b)
+                loss.backward()
+                total, samples = total + loss.item() * len(b.index), samples + len(b.index)
+            total /= samples
+            if penalty is not None:
+                extra = penalty(step, z)
+                extra.backward()
+                total += extra.item()
             opt.step()
             if progress is not None:
-                progress(step, loss.item(), z.detach())
+                progress(step, total, z.detach())
     return z.detach()
+
+
+def held_out_loss(model: NeuralModel, vectors: np.ndarray, z: Tensor, samples: int = 256, seed: int = 1) -> float:
+    """Mean over the vectors of each one's fitting loss on ``samples`` fresh directions: how well
+    latents ``z`` fit, with every vector weighed alike whatever the others."""
+    pool = fitting_pool(model, vectors)
+    gen = torch.Generator().manual_seed(seed)
+    rows = max(1, CHUNK_SAMPLES // samples)
+    losses = []
+    with torch.no_grad():
+        for lo in range(0, len(pool), rows):
+            index = torch.arange(lo, min(lo + rows, len(pool))).repeat(samples)
+            b = make_batch(pool, len(index), gen, index)
+            losses.append(fitting_loss(model, z[b.index], b).item() * len(index))
+    return sum(losses) / (len(pool) * samples)
 
 
 @contextmanager
