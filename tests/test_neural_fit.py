@@ -270,7 +270,7 @@ def test_fitting_applies_the_decoders_angular_floor(tiny_weights: Path, tmp_path
 def test_the_fit_error_is_higher_for_latents_of_other_materials() -> None:
     """The shipped decoder's fitted latents against the same latents given to the wrong materials:
     the readout must tell the bad ones apart, each material and on average."""
-    from bench.agreement_cases import cases
+    from support.agreement_cases import cases
 
     torch.manual_seed(0)
     model = weights.load(weights.SHIPPED)
