@@ -200,6 +200,12 @@ ROWS: tuple[DocNumber, ...] = (
     # the other design notes
     DocNumber("docs/addon.md", "emission preview (mean FLIP {0.0217} at 48 px", R + "preview_agreement.json",
               "runs/0/mean_flip"),
+    DocNumber("docs/addon.md", "WaterBottle {0.135} (0.156 with the emission preview)", R + "addon_assets_closures.json",
+              "assets/WaterBottle/preview_flip_vs_bake"),
+    DocNumber("docs/addon.md", "WaterBottle 0.135 ({0.156} with the emission preview)", R + "addon_assets.json",
+              "assets/WaterBottle/preview_flip_vs_bake"),
+    DocNumber("docs/addon.md", "CesiumMilkTruck {0.027} (0.064)", R + "addon_assets_closures.json", "assets/CesiumMilkTruck/preview_flip_vs_bake"),
+    DocNumber("docs/addon.md", "CesiumMilkTruck 0.027 ({0.064})", R + "addon_assets.json", "assets/CesiumMilkTruck/preview_flip_vs_bake"),
     DocNumber("docs/addon.md", "| probe | **{0.055}** (worst 0.109)", R + "closure_preview.json", "scenes/probe/summary/closures/mean_flip"),
     DocNumber("docs/addon.md", "| probe | **0.055** (worst {0.109})", R + "closure_preview.json", "scenes/probe/summary/closures/worst_flip"),
     DocNumber("docs/addon.md", "(worst 0.109) | {0.064} (worst 0.101)", R + "closure_preview.json", "scenes/probe/summary/emission/mean_flip"),
