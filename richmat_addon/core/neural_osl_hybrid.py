@@ -145,11 +145,10 @@ shader richmat_neural(
     normal Normal = N,
     output closure color BSDF = 0)
 {
-    vector n, t, bt;
-    shading_frame(Normal, n, t, bt);
-    vector view = normalize(I);  // Cycles passes its wi here: towards the viewer (checked)
-    vector wi = vector(dot(view, t), dot(view, bt), dot(view, n));
-    float z[6] = {latent_0[0], latent_0[1], latent_0[2], latent_1[0], latent_1[1], latent_1[2]};
+    vector n, t, bt, wi;
+    shading_point(Normal, I, n, t, bt, wi);
+    float z[6];
+    latent_vector(latent_0, latent_1, z);
     float s[STATE];
     setup(z, wi, s);
     BSDF = (s[T_SLOT] * base_color) * diffuse(n);

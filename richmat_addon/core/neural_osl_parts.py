@@ -20,7 +20,8 @@ void net_input(float z[6], vector wi, vector wo, output float x[NET_INPUTS])
         x[i] = v[i];
 }
 
-void shading_frame(normal Normal, output vector n, output vector t, output vector bt)
+// the frame at the shading normal and wi in it; Cycles passes its wi (towards the viewer) as I (checked)
+void shading_point(normal Normal, vector I_, output vector n, output vector t, output vector bt, output vector wi)
 {
     n = normalize(Normal);
     float sg = n[2] >= 0 ? 1.0 : -1.0;
@@ -28,6 +29,16 @@ void shading_frame(normal Normal, output vector n, output vector t, output vecto
     float b = n[0] * n[1] * a;
     t = vector(1.0 + sg * n[0] * n[0] * a, sg * b, -sg * n[0]);
     bt = vector(b, sg + n[1] * n[1] * a, -n[1]);
+    vector view = normalize(I_);
+    wi = vector(dot(view, t), dot(view, bt), dot(view, n));
+}
+
+void latent_vector(vector latent_0, vector latent_1, output float z[6])
+{
+    for (int i = 0; i < 3; i++) {
+        z[i] = latent_0[i];
+        z[i + 3] = latent_1[i];
+    }
 }
 """
 
