@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import importlib
+import importlib.util
 import json
 import subprocess
 import sys
@@ -104,7 +105,7 @@ for case in job["cases"]:
 
 def emission_shader(commit: str, tensors: dict[str, np.ndarray], tmp: Path) -> str:
     """The preview shader as ``commit`` generated it (its ``core/neural_osl.py`` and what that imports,
-    read from git into a throwaway package)."""
+    read from git into a throwaway package registered under its own name)."""
     package = tmp / "preview_then"
     package.mkdir()
     (package / "__init__.py").write_text("")
@@ -112,11 +113,14 @@ def emission_shader(commit: str, tensors: dict[str, np.ndarray], tmp: Path) -> s
         source = subprocess.run(["git", "show", f"{commit}:richmat_addon/core/{name}"], cwd=REPO, check=True,
                                 capture_output=True, text=True).stdout
         (package / name).write_text(source)
-    sys.path.insert(0, str(tmp))
+    spec = importlib.util.spec_from_file_location("preview_then", package / "__init__.py",
+                                                  submodule_search_locations=[str(package)])
+    sys.modules["preview_then"] = importlib.util.module_from_spec(spec)
     try:
         return importlib.import_module("preview_then.neural_osl").neural_osl_source(tensors)
     finally:
-        sys.path.remove(str(tmp))
+        for name in [m for m in sys.modules if m == "preview_then" or m.startswith("preview_then.")]:
+            del sys.modules[name]
 
 
 def torch_images(model: weights.NeuralModel, case: dict, setup: BallSetup, sun: Sun | None) -> dict[str, np.ndarray]:

@@ -24,7 +24,7 @@ from batch import ledger
 from batch.options import DEFAULT_DECODER
 from richmat_addon.core import dataset_index, neural_folder
 from richmat_addon.core.enhancement_types import TYPES
-from support.batch_inputs import make_inputs
+from support.batch_inputs import TETRA_STL, make_inputs
 from torch_models.dataset import BatchDataset
 
 REPO = Path(__file__).resolve().parents[1]
