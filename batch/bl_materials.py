@@ -191,7 +191,7 @@ def bake_vertex_colours(source: MaterialSource, max_texture: int) -> None:
 
 
 def unwrap_missing_uvs() -> list[str]:
-    """Give every mesh without UVs an xatlas atlas; say which could not get one and why."""
+    """Give every mesh without UVs a UV atlas (xatlas, else Smart UV Project); say how, or why not."""
     notes = []
     for obj in mesh_objects():
         mesh = obj.data
@@ -202,11 +202,11 @@ def unwrap_missing_uvs() -> list[str]:
                          "not unwrapped, its materials stay untextured")
             continue
         try:
-            unwrap(obj, triangulate=True)
+            done = unwrap(obj, triangulate=True)
         except InputProblem as problem:
             notes.append(f"{obj.name}: no UVs, not unwrapped: {problem}")
             continue
-        notes.append(f"{obj.name}: no UVs, unwrapped with xatlas")
+        notes.append(f"{obj.name}: no UVs, unwrapped with {done.method}")
     return notes
 
 

@@ -46,13 +46,14 @@ def test_the_farm_runs_with_only_what_a_stock_blender_bundles(shared_assets: Pat
     shutil.copy(shared_assets / "models" / "Box.glb", inputs / "Box.glb")  # one material, no UVs
     proc, refused = guarded_run(tmp_path, inputs, out)
     assert proc.returncode == 0, proc.stderr[-4000:]
-    # what the Blender side tried and did without: tqdm (a plain progress line instead) and xatlas (noted)
+    # what the Blender side tried and did without: tqdm (a plain progress line instead) and xatlas (Smart UV
+    # Project instead, noted)
     assert sorted(set(refused)) == [("blender_job.py", "xatlas"), ("render_dataset.py", "tqdm")], refused
     assert "shard 0000-of-0001 [1/1] done Box-" in proc.stderr
     (record,) = [r for path in (out / "_ledger").glob("*.jsonl") for r in ledger.read(path)]
     assert record["status"] == "done" and record["source"] == "Box.glb"
     manifest = json.loads((out / record["asset_id"] / "manifest.json").read_text())
-    assert any("no UVs, not unwrapped: xatlas is not installed in Blender's Python" in n for n in manifest["notes"])
+    assert any("no UVs, unwrapped with Smart UV Project: xatlas is not installed" in n for n in manifest["notes"])
     for name in ("rgb/0000.png", "rgb/0001.png", "passes/0000.exr", "orbit.mp4", "cameras.json", "caption.txt"):
         assert name in manifest["files"], name
     assert manifest["fit"]["torch_version"]  # the fit ran in the --python interpreter, with torch

@@ -93,7 +93,18 @@ def _smart_project(obj: bpy.types.Object) -> Unwrapped:
             for attr in ("select", "hide")}
     mode = obj.mode
     _new_layer(mesh)
-    with bpy.context.temp_override(active_object=obj, object=obj, selected_objects=[obj],
+    layer_objects = bpy.context.view_layer.objects
+    was_active = layer_objects.active
+    layer_objects.active = obj  # edit mode enters the view layer's active object, whatever the override says
+    try:
+        _smart_project_active(obj, mesh, kept, mode)
+    finally:
+        layer_objects.active = was_active
+    return Unwrapped(len(mesh.polygons), 0, "Smart UV Project: xatlas is not installed in Blender's Python")
+
+
+def _smart_project_active(obj: bpy.types.Object, mesh: bpy.types.Mesh, kept: dict, mode: str) -> None:
+    with bpy.context.temp_override(active_object=obj, object=obj, edit_object=obj, selected_objects=[obj],
                                    selected_editable_objects=[obj]):
         bpy.ops.object.mode_set(mode="EDIT")
         bpy.ops.mesh.reveal(select=False)
@@ -105,7 +116,6 @@ def _smart_project(obj: bpy.types.Object) -> Unwrapped:
         mesh.update()
         if mode != "OBJECT":
             bpy.ops.object.mode_set(mode=mode)
-    return Unwrapped(len(mesh.polygons), 0, "Smart UV Project: xatlas is not installed in Blender's Python")
 
 
 def _flags(items: bpy.types.bpy_prop_collection, attr: str) -> np.ndarray:
