@@ -54,7 +54,7 @@ SCENES = {"probe": None, "probe_and_sun": SUN}
 PREVIEW_SHADER_FILES = ("neural_osl.py", "schema.py", "tensor_file.py")
 
 CYCLES = """
-import json, sys, time, numpy as np, bpy, mathutils
+import json, sys, time, numpy as np, bpy
 from pathlib import Path
 from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
 prefer_blender_bundled_modules()
@@ -77,11 +77,7 @@ scene.cycles.shading_system = True
 if "probe" in node.inputs:
     node.inputs["probe"].default_value = job["probe"]
 if job["sun"] is not None:
-    lamp = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
-    lamp.data.energy, lamp.data.angle = job["sun"][1], 0.0
-    lamp.rotation_mode = "QUATERNION"
-    lamp.rotation_quaternion = mathutils.Vector(job["sun"][0]).to_track_quat("Z", "Y")
-    scene.collection.objects.link(lamp)
+    preview_scene.add_sun(scene, *job["sun"])
 res = job["resolution"]
 seconds = {}
 for case in job["cases"]:

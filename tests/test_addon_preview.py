@@ -88,11 +88,7 @@ if sun is not None:
     for link in list(background.inputs["Color"].links):
         scene.world.node_tree.links.remove(link)
     background.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-    lamp = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
-    lamp.data.energy, lamp.data.angle = sun[1], 0.0
-    lamp.rotation_mode = "QUATERNION"
-    lamp.rotation_quaternion = __import__("mathutils").Vector(sun[0]).to_track_quat("Z", "Y")
-    scene.collection.objects.link(lamp)
+    preview_scene.add_sun(scene, *sun)
 scene.cycles.shading_system = True
 path = Path({str(folder / "cycles.exr")!r})
 preview_scene.render_exr(scene, path)

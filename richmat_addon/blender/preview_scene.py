@@ -107,6 +107,18 @@ def setup(scene: bpy.types.Scene, preview: PreviewScene, probe: Path,
     cycles.blur_glossy = 0.0
 
 
+def add_sun(scene: bpy.types.Scene, direction: tuple[float, float, float], irradiance: float) -> None:
+    """A sun lamp at angle 0 (a delta light, as the torch renderer's ``render.ball.Sun``) shining from
+    ``direction`` with ``irradiance`` (Cycles' Strength)."""
+    import mathutils
+
+    lamp = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
+    lamp.data.energy, lamp.data.angle = irradiance, 0.0
+    lamp.rotation_mode = "QUATERNION"
+    lamp.rotation_quaternion = mathutils.Vector(direction).to_track_quat("Z", "Y")
+    scene.collection.objects.link(lamp)
+
+
 def render_exr(scene: bpy.types.Scene, path: Path) -> None:
     """Render the scene and save scene-linear RGBA as a float EXR."""
     scene.render.image_settings.file_format = "OPEN_EXR"

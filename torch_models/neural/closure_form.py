@@ -32,7 +32,7 @@ from torch import Tensor, nn
 
 from ..brdf.ggx import ggx_sample
 from ..brdf.lobes import sheen_sample
-from .hybrid import HybridDecoder
+from .hybrid import HybridDecoder, Lobes
 
 RULES = ("dominant", "mean")
 
@@ -65,18 +65,18 @@ class ClosureForm(nn.Module):
     def bounded(self) -> bool:
         return self.decoder.bounded
 
-    def gates_at(self, latent: Tensor, wi: Tensor, points: Tensor | None = None) -> Tensor:
+    def gates_at(self, latent: Tensor, wi: Tensor, points: Tensor | None = None, lobes: Lobes | None = None) -> Tensor:
         """(N, slots, 3) one gate per lobe slot (GGX lobes, diffuse, [sheen]) at each point; for the mean,
-        over ``points`` (m, 2) in [0, 1)^2 shared by all points, or ``draws`` random ones per point."""
+        over ``points`` (m, 2) in [0, 1)^2 shared by all points, or ``draws`` random ones per point.
+        ``lobes``: the head at (latent, wi) where the caller has it already."""
         d = self.decoder
-        lobes = d.head_at(latent, wi)
-        normal = torch.zeros_like(wi)
-        normal[:, 2] = 1.0
-        if self.rule == "dominant":
+        lobes = d.head_at(latent, wi) if lobes is None else lobes
+        if self.rule == "dominant":  # the GGX lobes' gates at the mirror of wi, the others' at the normal
+            normal = torch.zeros_like(wi)
+            normal[:, 2] = 1.0
             mirror = wi * torch.tensor([-1.0, -1.0, 1.0])
-            out = [d.gates_at(latent, wi, mirror)[:, k] for k in range(self.lobes)]
-            out += [d.gates_at(latent, wi, normal)[:, k] for k in range(self.lobes, self.lobes + 1 + self.sheen)]
-            return torch.stack(out, 1)
+            k = self.lobes
+            return torch.cat([d.gates_at(latent, wi, mirror)[:, :k], d.gates_at(latent, wi, normal)[:, k:]], 1)
         n = len(wi)
         m = self.draws if points is None else len(points)
         u_m = torch.rand(n * m, 2, generator=self.generator) if points is None else points.repeat(n, 1)
@@ -95,5 +95,5 @@ class ClosureForm(nn.Module):
 
     def forward(self, latent: Tensor, wi: Tensor, wo: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         lobes = self.decoder.head_at(latent, wi)
-        f = self.decoder.lobe_sum(lobes, latent, wi, wo, gates=self.gates_at(latent, wi))
+        f = self.decoder.lobe_sum(lobes, latent, wi, wo, gates=self.gates_at(latent, wi, lobes=lobes))
         return f, lobes.weights[:, self.t_slot:self.t_slot + 1], lobes.r
