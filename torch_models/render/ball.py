@@ -148,8 +148,8 @@ def render_ball(bsdf_at: BsdfAt, env: EnvMap | None, scene: PreviewScene = Previ
 
 
 def shade_gbuffer(bsdf_at: BsdfAt, env: EnvMap, normals: np.ndarray, views: np.ndarray,
-                  mask: np.ndarray, spp: int = 64, seed: int = 0) -> np.ndarray:
-    """Probe lighting of a G-buffer: per covered pixel, its world normal and the unit
+                  mask: np.ndarray, spp: int = 64, seed: int = 0, sun: Sun | None = None) -> np.ndarray:
+    """Probe lighting (and ``sun``) of a G-buffer: per covered pixel, its world normal and the unit
     direction towards the camera, (H, W, 3) each; returns scene-linear RGB (H, W, 3).
 
     A G-buffer carries no geometry beyond the pixel, so nothing is shadowed: exact
@@ -168,6 +168,8 @@ def shade_gbuffer(bsdf_at: BsdfAt, env: EnvMap, normals: np.ndarray, views: np.n
         for s in range(spp):
             u = (points[s] + shift) % 1.0
             total += direct_light(bsdf, env, wi, (t, b, n), u[:, :4], u[:, 4:7])
+        if sun is not None:  # unshadowed, as the probe is
+            total += spp * sun_light(bsdf, sun, wi, (t, b, n))
     out = np.zeros((mask.size, 3), np.float32)
     out[rows.numpy()] = (total / spp).numpy()
     return out.reshape(*mask.shape, 3)
