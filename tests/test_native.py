@@ -11,6 +11,7 @@ import torch
 from batch import options
 from richmat_addon.core import albedo_fits, graph
 from richmat_addon.core.albedo_fit_data import DIELECTRIC, SHEEN
+from richmat_addon.core.closures import dielectric, sheen
 from richmat_addon.core.enhance import enhance
 from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
@@ -38,14 +39,14 @@ def test_the_fits_follow_the_torch_tables():
     t = {k: torch.from_numpy(v)[:, None] for k, v in {"mu": mu, "alpha": rho ** 2, "ior": ior}.items()}
     with torch.no_grad():
         albedo = lobes.dielectric_albedo(t["mu"], t["alpha"], t["ior"], torch.ones(400, 3, dtype=torch.float64))
-        sheen = lobes.sheen_albedo(t["mu"][:, 0], torch.from_numpy(rho)).numpy()
+        sheen_albedo = lobes.sheen_albedo(t["mu"][:, 0], torch.from_numpy(rho)).numpy()
     albedo = albedo[:, 0].numpy()
-    fitted = np.array([albedo_fits.dielectric(DIELECTRIC, m, r * r, n) for m, r, n in zip(mu, rho, ior)])
+    fitted = np.array([dielectric.fitted_albedo(m, r * r, n) for m, r, n in zip(mu, rho, ior)])
     assert np.abs(fitted - albedo).max() <= DIELECTRIC.max_error + 1e-3
     rough = rho >= 0.1  # the sheen fit's domain
-    fitted_sheen = np.array([albedo_fits.sheen(SHEEN, m, r) for m, r in zip(mu[rough], rho[rough])])
-    assert np.abs(fitted_sheen - sheen[rough]).max() <= SHEEN.max_error + 1e-3
-    assert not math.isnan(albedo_fits.dielectric(DIELECTRIC, 0.0, 0.0, 1.5))  # grazing and smooth: finite
+    fitted_sheen = np.array([sheen.fitted_albedo(m, r) for m, r in zip(mu[rough], rho[rough])])
+    assert np.abs(fitted_sheen - sheen_albedo[rough]).max() <= SHEEN.max_error + 1e-3
+    assert not math.isnan(dielectric.fitted_albedo(0.0, 0.0, 1.5))  # grazing and smooth: finite
 
 
 FIT_NODES = """
@@ -107,7 +108,7 @@ def test_the_fit_nodes_compute_the_core_fits(blender_run):
     centres = (np.arange(size) + 0.5) / size
     for ior in iors:
         img = np.asarray(result[str(ior)])  # bottom row first: row index = y
-        want = np.array([[[albedo_fits.dielectric(DIELECTRIC, m, y * y, ior), albedo_fits.sheen(SHEEN, m, y), 0.0]
+        want = np.array([[[dielectric.fitted_albedo(m, y * y, ior), sheen.fitted_albedo(m, y), 0.0]
                           for m in centres] for y in centres])
         assert np.abs(img - want).max() < 1e-4, ior
 
