@@ -211,13 +211,15 @@ class _Builder:
         raise TypeError(f"not a graph node: {node!r}")
 
 
-def to_materialx(mat: EnhancedMaterial, texture_paths: dict[str, str]) -> mx.Document:
+def to_materialx(mat: EnhancedMaterial, texture_paths: dict[str, str],
+                 surface: graph.Node = graph.SURFACE) -> mx.Document:
     """The document of ``mat``: its pruned graph, a ``surface`` and a ``surfacematerial``.
 
     ``texture_paths`` (parameter name or ``"base_color"`` -> file) is authored as given.
     """
-    pruned = graph.prune(graph.SURFACE, mat.constants())
-    assert pruned is not None  # the diffuse base always survives
+    pruned = graph.prune(surface, mat.constants())
+    if pruned is None:
+        raise ValueError("the material graph pruned to nothing")
     doc = mx.createDocument()
     doc.setColorSpace(COLOR_SPACE)
     builder = _Builder(doc, mat, texture_paths)
