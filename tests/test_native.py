@@ -1,6 +1,7 @@
 """The native node graph: its fits, its groups per type, its Cycles renders against OSL's, the farm's --graph."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np

@@ -7,11 +7,10 @@ below are the part of each writer an emitter may use.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, Protocol, Union
+from typing import Any, Callable, Protocol
 
-from ..graph import Diffuse, Lobe, Value
+from ..graph import Lobe, Value
 
-ClosureNode = Union[Lobe, Diffuse]
 # Every GGX lobe compensates its multiple scattering, so that Cycles' layer albedo is the lobe's true one.
 GGX_DISTRIBUTION = "multi_ggx"
 
