@@ -8,6 +8,8 @@ from ..native_nodes import Socket, Walker
 
 
 class _Diffuse:
+    """The base: no group of its own, since it has no weight or albedo to report."""
+
     def build(self, walker: Walker, node: graph.Diffuse) -> tuple[Socket, Optional[Socket]]:
         diffuse = walker.b.bsdf("ShaderNodeBsdfDiffuse", walker.inputs, label=node.name)
         walker.b.feed(diffuse.inputs["Color"], walker.inputs["base_color"])
