@@ -6,15 +6,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 
 from batch import options
 from richmat_addon.core import albedo_fits, graph
-from richmat_addon.core.albedo_fit_data import DIELECTRIC, SHEEN
+from richmat_addon.core.closures import dielectric, sheen
 from richmat_addon.core.enhance import enhance
 from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap, PbrInputs
-from torch_models.brdf import lobes
 
 from support.extension import script
 from .test_addon_extension import extension_zip  # noqa: F401  (session fixture)
@@ -32,27 +30,12 @@ def type_material(type_: int, metal: bool = False) -> EnhancedMaterial:
     return enhance(pbr, type_, seed=1)
 
 
-def test_the_fits_follow_the_torch_tables():
-    rng = np.random.default_rng(0)
-    mu, rho, ior = rng.uniform(0.1, 1, 400), rng.uniform(0.01, 1, 400), rng.uniform(1.3, 1.8, 400)
-    t = {k: torch.from_numpy(v)[:, None] for k, v in {"mu": mu, "alpha": rho ** 2, "ior": ior}.items()}
-    with torch.no_grad():
-        albedo = lobes.dielectric_albedo(t["mu"], t["alpha"], t["ior"], torch.ones(400, 3, dtype=torch.float64))
-        sheen = lobes.sheen_albedo(t["mu"][:, 0], torch.from_numpy(rho)).numpy()
-    albedo = albedo[:, 0].numpy()
-    fitted = np.array([albedo_fits.dielectric(DIELECTRIC, m, r * r, n) for m, r, n in zip(mu, rho, ior)])
-    assert np.abs(fitted - albedo).max() <= DIELECTRIC.max_error + 1e-3
-    rough = rho >= 0.1  # the sheen fit's domain
-    fitted_sheen = np.array([albedo_fits.sheen(SHEEN, m, r) for m, r in zip(mu[rough], rho[rough])])
-    assert np.abs(fitted_sheen - sheen[rough]).max() <= SHEEN.max_error + 1e-3
-    assert not math.isnan(albedo_fits.dielectric(DIELECTRIC, 0.0, 0.0, 1.5))  # grazing and smooth: finite
-
-
 FIT_NODES = """
 import json, math
 import numpy as np
 import bpy
-from richmat_addon.blender import native_builder
+from richmat_addon.blender.native_closures import dielectric as dielectric_nodes, sheen as sheen_nodes
+from richmat_addon.blender.native_nodes import Builder
 
 bpy.ops.wm.read_factory_settings(use_empty=True)
 scene = bpy.context.scene
@@ -76,14 +59,14 @@ for ior in IORS:
     mat = bpy.data.materials.new("fit")
     tree = mat.node_tree
     tree.nodes.clear()
-    b = native_builder._Builder(tree)
+    b = Builder(tree)
     window = b.node("ShaderNodeSeparateXYZ")
     b.feed(window.inputs[0], b.node("ShaderNodeTexCoord").outputs["Window"])
     # One value per pixel, whatever the sample's position in it: the pixel's centre.
     mu, y = ((b.math("FLOOR", b.math("MULTIPLY", window.outputs[k], SIZE)) for k in (0, 1)))
     mu, y = (b.math("DIVIDE", b.math("ADD", v, 0.5), SIZE) for v in (mu, y))
-    diel = b.group(native_builder._dielectric_albedo(), Cosine=mu, Alpha=b.math("MULTIPLY", y, y), IOR=ior)
-    sheen = b.group(native_builder._sheen_albedo(), Cosine=mu, Roughness=y)
+    diel = b.group(dielectric_nodes.albedo_group(), Cosine=mu, Alpha=b.math("MULTIPLY", y, y), IOR=ior)
+    sheen = b.group(sheen_nodes.albedo_group(), Cosine=mu, Roughness=y)
     rgb = b.node("ShaderNodeCombineXYZ")
     for k, socket in enumerate((diel.outputs["Albedo"], sheen.outputs["Albedo"])):
         b.feed(rgb.inputs[k], socket)
@@ -107,7 +90,7 @@ def test_the_fit_nodes_compute_the_core_fits(blender_run):
     centres = (np.arange(size) + 0.5) / size
     for ior in iors:
         img = np.asarray(result[str(ior)])  # bottom row first: row index = y
-        want = np.array([[[albedo_fits.dielectric(DIELECTRIC, m, y * y, ior), albedo_fits.sheen(SHEEN, m, y), 0.0]
+        want = np.array([[[dielectric.fitted_albedo(m, y * y, ior), sheen.fitted_albedo(m, y), 0.0]
                           for m in centres] for y in centres])
         assert np.abs(img - want).max() < 1e-4, ior
 

@@ -1,4 +1,4 @@
-"""Fit the layering albedos of ``richmat_addon/core/albedo_fits.py`` to the torch tables.
+"""Fit the layering albedos of the closure kinds (``richmat_addon/core/closures/``) to the torch tables.
 
     python tools/albedo_fits.py   # rewrites richmat_addon/core/albedo_fit_data.py
 
@@ -19,7 +19,7 @@ import torch
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from richmat_addon.core import albedo_fits as af  # noqa: E402
+from richmat_addon.core.closures import dielectric as dielectric_kind, sheen as sheen_kind  # noqa: E402
 from torch_models.brdf import lobes  # noqa: E402
 
 OUT = REPO / "richmat_addon" / "core" / "albedo_fit_data.py"
@@ -52,7 +52,7 @@ def dielectric_targets() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     t = {k: torch.from_numpy(v)[:, None] for k, v in {"mu": mu, "alpha": y * y, "ior": ior}.items()}
     with torch.no_grad():
         albedo = lobes.dielectric_albedo(t["mu"], t["alpha"], t["ior"], torch.ones(mu.size, 3, dtype=torch.float64))
-    features = np.array([af.dielectric_features(m, a * a, n) for m, a, n in zip(mu, y, ior)])
+    features = np.array([dielectric_kind.features(m, a * a, n) for m, a, n in zip(mu, y, ior)])
     return albedo[:, 0].numpy(), features, mu, y
 
 
@@ -61,7 +61,7 @@ def sheen_targets() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
                                                 indexing="ij"))
     with torch.no_grad():
         albedo = lobes.sheen_albedo(torch.from_numpy(mu), torch.from_numpy(y)).numpy()
-    return albedo, np.array([af.sheen_features(m, r) for m, r in zip(mu, y)]), mu, y
+    return albedo, np.array([sheen_kind.features(m, r) for m, r in zip(mu, y)]), mu, y
 
 
 def _literal(name: str, what: str, coefficients: np.ndarray, max_error: float, rms_error: float) -> str:

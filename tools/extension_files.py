@@ -25,8 +25,22 @@ def addon_modules(root: Path = REPO) -> list[Path]:
     """
     finder = modulefinder.ModuleFinder(path=[str(root)])
     finder.import_hook(PACKAGE)
+    for name in _discovered_modules(root, finder):
+        finder.import_hook(name)
     return sorted(Path(module.__file__).relative_to(root / PACKAGE) for name, module in finder.modules.items()
                   if name == PACKAGE or name.startswith(PACKAGE + "."))
+
+
+def _discovered_modules(root: Path, finder: modulefinder.ModuleFinder) -> list[str]:
+    """The modules a reached package imports at run time by listing itself (a closure registry's
+    ``Registry.discover(__name__, __path__)``): no import statement names them."""
+    found = []
+    for name, module in list(finder.modules.items()):
+        path = Path(module.__file__ or "")
+        if name.startswith(PACKAGE) and path.name == "__init__.py" and \
+                ".discover(__name__, __path__)" in path.read_text(encoding="utf-8"):
+            found += [f"{name}.{p.stem}" for p in sorted(path.parent.glob("*.py")) if p.name != "__init__.py"]
+    return found
 
 
 def addon_data(root: Path = REPO) -> list[Path]:

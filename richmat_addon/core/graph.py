@@ -1,7 +1,7 @@
 """The enhanced material as a small graph: the single source of truth.
 
-Like a MaterialX nodegraph, the structure is data: closures (sheen, dielectric,
-conductor, diffuse) combined by ``Layer`` (albedo-scaled coating), ``Mix`` and
+Like a MaterialX nodegraph, the structure is data: closures (each kind defined
+by one module of ``core/closures/`` and its twins on the other floors) combined by ``Layer`` (albedo-scaled coating), ``Mix`` and
 ``Add``. The torch evaluator, the Cycles OSL generator and the MaterialX
 exporter each walk this graph; none of them hard-codes the lobe stack.
 
@@ -19,12 +19,9 @@ which gives T(wi) = T_dust * T_coat * (1 - m) * T_diel * T_inner * T_subsurf.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Iterator, Literal, Mapping, Union
+from typing import ClassVar, Iterator, Mapping, Union
 
 from .schema import PARAM_BY_NAME
-
-Closure = Literal["sheen", "dielectric", "conductor"]
-
 
 @dataclass(frozen=True)
 class Ref:
@@ -45,16 +42,10 @@ WHITE: tuple[float, float, float] = (1.0, 1.0, 1.0)
 
 @dataclass(frozen=True)
 class Lobe:
-    """One weighted closure.
-
-    Inputs per closure kind:
-      sheen:      roughness, color
-      dielectric: ior, alpha, tint (reflection tint; no transmission)
-      conductor:  reflectivity, edge_tint, alpha
-    """
+    """One weighted closure; ``closure`` names its kind in ``core.closures.KINDS``, which lists its inputs."""
 
     name: str
-    closure: Closure
+    closure: str
     weight: Ref
     inputs: Mapping[str, Value] = field(default_factory=dict)
 
@@ -64,6 +55,7 @@ class Diffuse:
     """The Lambertian base with the PBR base colour; kept outside f_neu."""
 
     name: str = "diffuse"
+    closure: ClassVar[str] = "diffuse"
 
 
 @dataclass(frozen=True)

@@ -1,13 +1,9 @@
 """Export the enhanced material as a MaterialX 1.39 document (pbrlib nodes).
 
 The document is made by walking the same graph as the OSL backend, pruned by the
-material's constants. Mapping (docs/backends.md):
-
-* sheen lobe      -> ``sheen_bsdf`` (mode "zeltner", the model Cycles implements)
-* dielectric lobe -> ``dielectric_bsdf`` (scatter_mode "R")
-* conductor lobe  -> ``conductor_bsdf`` fed by ``artistic_ior``
-* diffuse         -> ``oren_nayar_diffuse_bsdf`` with roughness 0 (Lambert)
-* Layer/Mix/Add   -> ``layer`` / ``mix`` / ``add``
+material's constants. Each closure is the node its kind's ``mtlx`` emitter makes
+(``core/closures/``; docs/backends.md lists them); Layer/Mix/Add become
+``layer`` / ``mix`` / ``add``.
 
 Lobe weights go into each BSDF's ``weight`` input: MaterialX's ``multiply`` would
 scale the response but leave the throughput seen by the base unchanged.
@@ -28,10 +24,10 @@ from typing import Any, Callable, Union
 import MaterialX as mx
 
 from . import graph, schema
+from .closures import KINDS
 from .maps import EnhancedMaterial, ParamMap
 
 COLOR_SPACE = "lin_rec709"  # our maps hold linear Rec.709 values
-SHEEN_MODE = "zeltner"
 # Guard for c / max(c) when a texel of a coloured top is black (its weight is 0 then).
 _MAX_EPS = 1e-6
 
@@ -192,42 +188,11 @@ class _Builder:
                 self.memo(("normalized", source), lambda: self.normalized(c, m, name)))
 
     # -- graph ----------------------------------------------------------------------------
-    def lobe(self, lobe: graph.Lobe) -> mx.Node:
-        inp = lobe.inputs
-        if lobe.closure == "sheen":
-            w, c = self.coloured_weight(lobe, "color")
-            rough = self.clamped(inp["roughness"], schema.SHEEN_ROUGHNESS_MIN)
-            node = self.node("sheen_bsdf", lobe.name, "BSDF", weight=("float", w), color=("color3", c),
-                             roughness=("float", rough))
-            node.setInputValue("mode", SHEEN_MODE, "string")
-        elif lobe.closure == "dielectric":
-            w, c = self.coloured_weight(lobe, "tint")
-            node = self.node("dielectric_bsdf", lobe.name, "BSDF", weight=("float", w), tint=("color3", c),
-                             ior=("float", self.value(inp["ior"])),
-                             roughness=("vector2", self.alpha2(inp["alpha"])))
-            node.setInputValue("scatter_mode", "R", "string")
-        elif lobe.closure == "conductor":
-            ior = self.artistic_ior(inp["reflectivity"], inp["edge_tint"])
-            node = self.node("conductor_bsdf", lobe.name, "BSDF", weight=("float", self.value(lobe.weight)),
-                             ior=("color3", (ior, "ior")), extinction=("color3", (ior, "extinction")),
-                             roughness=("vector2", self.alpha2(inp["alpha"])))
-        else:
-            raise ValueError(f"unknown closure {lobe.closure!r}")
-        return node
-
-    def artistic_ior(self, reflectivity: graph.Value, edge_tint: graph.Value) -> mx.Node:
-        """One ``artistic_ior`` node per distinct (reflectivity, edge tint) pair."""
-        def make() -> mx.Node:
-            return self.node("artistic_ior", "artistic_ior", "multioutput",
-                             reflectivity=("color3", self.as_color(reflectivity)),
-                             edge_color=("color3", self.as_color(edge_tint)))
-        return self.memo(("artistic_ior", reflectivity, edge_tint), make)  # type: ignore[return-value]
-
     def build(self, node: graph.Node) -> mx.Node:
-        if isinstance(node, graph.Lobe):
-            return self.lobe(node)
+        if isinstance(node, (graph.Lobe, graph.Diffuse)):
+            return KINDS[node.closure].mtlx(self, node)
         if isinstance(node, graph.Add):
-            terms = [self.lobe(t) for t in node.terms]
+            terms = [KINDS[t.closure].mtlx(self, t) for t in node.terms]
             total = terms[0]
             for term in terms[1:]:
                 total = self.node("add", f"{total.getName()}_plus_{term.getName()}", "BSDF",
@@ -243,19 +208,18 @@ class _Builder:
             bg = self.build(node.bg)
             return self.node("mix", f"mix_{node.mix.name}", "BSDF", fg=("BSDF", fg), bg=("BSDF", bg),
                              mix=("float", self.value(node.mix)))
-        if isinstance(node, graph.Diffuse):
-            return self.node("oren_nayar_diffuse_bsdf", node.name, "BSDF", weight=("float", 1.0),
-                             color=("color3", self.param("base_color")), roughness=("float", 0.0))
         raise TypeError(f"not a graph node: {node!r}")
 
 
-def to_materialx(mat: EnhancedMaterial, texture_paths: dict[str, str]) -> mx.Document:
+def to_materialx(mat: EnhancedMaterial, texture_paths: dict[str, str],
+                 surface: graph.Node = graph.SURFACE) -> mx.Document:
     """The document of ``mat``: its pruned graph, a ``surface`` and a ``surfacematerial``.
 
     ``texture_paths`` (parameter name or ``"base_color"`` -> file) is authored as given.
     """
-    pruned = graph.prune(graph.SURFACE, mat.constants())
-    assert pruned is not None  # the diffuse base always survives
+    pruned = graph.prune(surface, mat.constants())
+    if pruned is None:
+        raise ValueError("the material graph pruned to nothing")
     doc = mx.createDocument()
     doc.setColorSpace(COLOR_SPACE)
     builder = _Builder(doc, mat, texture_paths)

@@ -5,27 +5,25 @@ stack exists only in ``graph.py``. Conventions (docs/backends.md, brdf-notes §8
 
 * right-nested ``layer(top, base)``: Cycles loses the outer attenuation when a
   layer sits inside a top, and the graph is built that way;
-* ``"multi_ggx"`` for every microfacet lobe, so that Cycles' layer albedo equals
-  the energy-preserved lobe's true albedo (``"ggx"`` overestimates it by 1/E);
 * lobe weights and colours are closure *multipliers*: Cycles then reports a layer
-  albedo of ``w * c * A`` and attenuates the base by ``1 - max_c(w c A)``. For
-  sheen this means ``w * c * sheen_bsdf(N, color(1), r)``: ``sheen_bsdf`` counts
-  its albedo argument twice in the layer albedo, a white albedo neutralises that.
+  albedo of ``w * c * A`` and attenuates the base by ``1 - max_c(w c A)``;
+* each closure is written by its kind's emitter (``core/closures/``), which also
+  says why it takes the form it does (``"multi_ggx"``, the white sheen albedo).
 
 Pure Python: runs inside a stock Blender and in the torch process alike.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Union
+from typing import Callable, Union
 
 from . import graph, schema
+from .closures import KINDS
 
 Default = Union[float, tuple[float, float, float], str]
 
 # The shader's base colour default: Blender's usual mid grey.
 BASE_COLOR_DEFAULT: tuple[float, float, float] = (0.8, 0.8, 0.8)
-DISTRIBUTION = "multi_ggx"
 
 
 @dataclass(frozen=True)
@@ -109,12 +107,29 @@ def _local(name: str) -> str:
 
 
 class _Writer:
-    """Accumulates one local statement per lobe, then composes the closure expression."""
+    """Accumulates local statements, then composes the closure expression.
+
+    Each closure kind's ``osl`` emitter (``core/closures/``) writes its lobe through
+    the methods below; the writer only walks the combinators.
+    """
 
     def __init__(self) -> None:
         self.lines: list[str] = []
-        self._ior_vars: dict[tuple[str, str], str] = {}
+        self._shared: dict[tuple[object, ...], str] = {}
         self._clamped: dict[str, str] = {}
+
+    value = staticmethod(_value)
+    as_color = staticmethod(_as_color)
+    local = staticmethod(_local)
+
+    def declare(self, line: str) -> None:
+        self.lines.append(line)
+
+    def once(self, key: tuple[object, ...], make: Callable[[], str]) -> str:
+        """``make()`` (which declares locals and returns a name) the first time ``key`` is asked for."""
+        if key not in self._shared:
+            self._shared[key] = make()
+        return self._shared[key]
 
     def clamped(self, value: graph.Value, lo: float) -> str:
         """A float local holding ``value`` clamped to [lo, 1], declared once per value."""
@@ -128,53 +143,23 @@ class _Writer:
             self.lines.append(f"float {var} = {expr};")
         return self._clamped[expr]
 
-    def lobe(self, lobe: graph.Lobe) -> str:
-        w = _value(lobe.weight)
-        inp = lobe.inputs
-        if lobe.closure == "sheen":
-            color = inp["color"]
-            scale = "" if color == graph.WHITE else f" * {_as_color(color)}"
-            rough = self.clamped(inp["roughness"], schema.SHEEN_ROUGHNESS_MIN)
-            expr = f"{w}{scale} * sheen_bsdf(Nn, color(1), {rough})"
-        elif lobe.closure == "dielectric":
-            a = self.clamped(inp["alpha"], schema.ALPHA_MIN)
-            expr = (f"{w} * dielectric_bsdf(Nn, U, {_as_color(inp['tint'])}, color(0), "
-                    f"{a}, {a}, {_value(inp['ior'])}, \"{DISTRIBUTION}\")")
-        elif lobe.closure == "conductor":
-            n, k = self._artistic_ior(lobe)
-            a = self.clamped(inp["alpha"], schema.ALPHA_MIN)
-            expr = f"{w} * conductor_bsdf(Nn, U, {a}, {a}, {n}, {k}, \"{DISTRIBUTION}\")"
-        else:
-            raise ValueError(f"unknown closure {lobe.closure!r}")
-        var = _local(lobe.name)
+    def closure(self, node: graph.Lobe | graph.Diffuse) -> str:
+        expr = KINDS[node.closure].osl(self, node)
+        var = _local(node.name)
         self.lines.append(f"closure color {var} = {expr};")
         return var
 
-    def _artistic_ior(self, lobe: graph.Lobe) -> tuple[str, str]:
-        """Declare (n, k) once per distinct (reflectivity, edge tint) pair."""
-        key = (_as_color(lobe.inputs["reflectivity"]), _as_color(lobe.inputs["edge_tint"]))
-        if key not in self._ior_vars:
-            var = self._ior_vars[key] = _local(lobe.name)
-            self.lines.append(f"color {var}_n, {var}_k;")
-            self.lines.append(f"artistic_ior({key[0]}, {key[1]}, {var}_n, {var}_k);")
-        var = self._ior_vars[key]
-        return f"{var}_n", f"{var}_k"
-
     def node(self, node: graph.Node) -> str:
-        if isinstance(node, graph.Lobe):
-            return self.lobe(node)
+        if isinstance(node, (graph.Lobe, graph.Diffuse)):
+            return self.closure(node)
         if isinstance(node, graph.Add):
-            return "(" + " + ".join(self.lobe(t) for t in node.terms) + ")"
+            return "(" + " + ".join(self.closure(t) for t in node.terms) + ")"
         if isinstance(node, graph.Layer):
             top = self.node(node.top)
             return f"layer({top}, {self.node(node.base)})"
         if isinstance(node, graph.Mix):
             fg = self.node(node.fg)
             return f"mix({self.node(node.bg)}, {fg}, {_value(node.mix)})"
-        if isinstance(node, graph.Diffuse):
-            var = _local(node.name)
-            self.lines.append(f"closure color {var} = base_color * diffuse(Nn);")
-            return var
         raise TypeError(f"not a graph node: {node!r}")
 
 

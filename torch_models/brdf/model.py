@@ -13,9 +13,8 @@ pruning by constant weights are ever evaluated.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Callable, Mapping
 
 import torch
 from torch import Tensor
@@ -24,12 +23,22 @@ from richmat_addon.core import graph as g
 from richmat_addon.core.colour import LUMINANCE
 from richmat_addon.core.schema import CHANNEL_SLICES, PARAM_BY_NAME
 
-from . import lobes
+from .closures import TORCH
+from .closures.kind import TorchClosure
 
 
 def luminance(rgb: Tensor) -> Tensor:
     w = torch.tensor(LUMINANCE, dtype=rgb.dtype, device=rgb.device)
     return (rgb * w).sum(-1, keepdim=True)
+
+
+# The Lambertian base is a graph node of its own kind; every material has one, pruned or not (then T = 0).
+_BASE = g.Diffuse()
+_BASE_KIND = TORCH[g.Diffuse.closure]
+
+
+def _kind(node: g.Lobe | g.Diffuse) -> TorchClosure:
+    return TORCH[node.closure]
 
 
 @dataclass
@@ -58,7 +67,7 @@ class LayeredBsdf:
         self.node = pruned
         # iter_lobes visits tops before bases and fg before bg, the order terms() uses.
         self.lobes = list(g.iter_lobes(self.node))
-        self._nk: tuple[Tensor, Tensor] | None = None
+        self._cached: dict[tuple[object, ...], object] = {}
         # View-dependent weights of the last view-direction tensor: a renderer calls
         # eval, pdf and sample with one ``wi`` and should pay for the layering once.
         self._memo: dict[str, tuple[Tensor, object]] = {}
@@ -79,48 +88,11 @@ class LayeredBsdf:
             return 1.0 - x if v.one_minus else x
         return torch.as_tensor(v, dtype=ref_tensor.dtype, device=ref_tensor.device).reshape(1, -1)
 
-    def conductor_ior(self) -> tuple[Tensor, Tensor]:
-        """(n, k) from Gulbrandsen, computed once: it depends on no direction."""
-        if self._nk is None:
-            self._nk = lobes.gulbrandsen(self.params["spec_color"],
-                                         self.params["edge_tint"].expand_as(self.params["spec_color"]))
-        return self._nk
-
-    # ---- per-lobe dispatch ----------------------------------------------------
-    def _lobe_eval(self, lobe: g.Lobe, wi: Tensor, wo: Tensor) -> Tensor:
-        i = lobe.inputs
-        if lobe.closure == "sheen":
-            return lobes.sheen_eval(wi, wo, self.value(i["roughness"]))
-        if lobe.closure == "dielectric":
-            return lobes.dielectric_eval(wi, wo, self.value(i["alpha"]), self.value(i["ior"]),
-                                         self.value(i["tint"]))
-        n, k = self.conductor_ior()
-        return lobes.conductor_eval(wi, wo, self.value(i["alpha"]), n, k)
-
-    def _lobe_albedo(self, lobe: g.Lobe, cos_i: Tensor) -> Tensor:
-        i = lobe.inputs
-        if lobe.closure == "sheen":
-            return lobes.sheen_albedo(cos_i, self.value(i["roughness"]))
-        if lobe.closure == "dielectric":
-            return lobes.dielectric_albedo(cos_i, self.value(i["alpha"]), self.value(i["ior"]),
-                                           self.value(i["tint"]))
-        n, k = self.conductor_ior()
-        return lobes.conductor_albedo(cos_i, self.value(i["alpha"]), n, k)
-
-    def _lobe_sample(self, lobe: g.Lobe, wi: Tensor, u: Tensor, rows: Tensor) -> Tensor:
-        i = lobe.inputs
-        if lobe.closure == "sheen":
-            return lobes.sheen_sample(wi, _rows(self.value(i["roughness"]), rows), u)
-        return lobes.ggx_sample(wi, _rows(self.value(i["alpha"]), rows), u)
-
-    def _lobe_pdf(self, lobe: g.Lobe, wi: Tensor, wo: Tensor) -> Tensor:
-        if lobe.closure == "sheen":
-            return lobes.sheen_pdf(wi, wo, self.value(lobe.inputs["roughness"]))
-        return lobes.ggx_pdf(wi, wo, self.value(lobe.inputs["alpha"]))
-
-    def _colour(self, lobe: g.Lobe) -> Tensor:
-        """Sheen colour multiplies the closure (as ``w * c * sheen_bsdf(N, 1, r)``)."""
-        return self.value(lobe.inputs["color"]) if lobe.closure == "sheen" else self.value(1.0)
+    def cached(self, key: tuple[object, ...], compute: Callable[[], object]) -> object:
+        """A value that depends on no direction (a conductor's (n, k)), computed once per material."""
+        if key not in self._cached:
+            self._cached[key] = compute()
+        return self._cached[key]
 
     # ---- view-dependent weights --------------------------------------------------
     def terms(self, wi: Tensor) -> tuple[list[_Term], Tensor]:
@@ -137,13 +109,13 @@ class LayeredBsdf:
             if isinstance(node, g.Diffuse):
                 diffuse = diffuse + w
             elif isinstance(node, g.Lobe):
-                out.append(_Term(node, w * self.value(node.weight) * self._colour(node)))
+                out.append(_Term(node, w * self.value(node.weight) * _kind(node).colour(self, node)))
             elif isinstance(node, g.Add):
                 for t in node.terms:
                     walk(t, w)
             elif isinstance(node, g.Layer):
                 tops = [node.top] if isinstance(node.top, g.Lobe) else list(node.top.terms)
-                albedo = sum(self.value(t.weight) * self._colour(t) * self._lobe_albedo(t, cos_i)
+                albedo = sum(self.value(t.weight) * _kind(t).colour(self, t) * _kind(t).albedo(self, t, cos_i)
                              for t in tops)
                 walk(node.top, w)
                 transmit = (1.0 - albedo.amax(-1, keepdim=True)).clamp(0.0, 1.0)
@@ -166,8 +138,8 @@ class LayeredBsdf:
         def compute() -> tuple[list[Tensor], Tensor]:
             cos_i = wi[..., 2:3].clamp(min=0.0)
             terms, diffuse = self.terms(wi)
-            per_lobe = [t.coeff * self._lobe_albedo(t.lobe, cos_i) * _ones3(cos_i) for t in terms]
-            return per_lobe, diffuse * self.base_color
+            per_lobe = [t.coeff * _kind(t.lobe).albedo(self, t.lobe, cos_i) * _ones3(cos_i) for t in terms]
+            return per_lobe, diffuse * _BASE_KIND.colour(self, _BASE) * _BASE_KIND.albedo(self, _BASE, cos_i)
         return self._per_view("albedos", wi, compute)
 
     def reflectance(self, wi: Tensor) -> Tensor:
@@ -185,13 +157,13 @@ class LayeredBsdf:
     def eval(self, wi: Tensor, wo: Tensor) -> Tensor:
         """Full f(wi, wo) * cos(theta_o), (N, 3)."""
         terms, diffuse = self.terms(wi)
-        cos_o = wo[..., 2:3].clamp(min=0.0) * (wi[..., 2:3] > 0)
-        return self._sum_terms(terms, wi, wo) + diffuse * self.base_color * cos_o / math.pi
+        base = diffuse * _BASE_KIND.colour(self, _BASE) * _BASE_KIND.eval(self, _BASE, wi, wo)
+        return self._sum_terms(terms, wi, wo) + base
 
     def _sum_terms(self, terms: list[_Term], wi: Tensor, wo: Tensor) -> Tensor:
         total = torch.zeros(wi.shape[:-1] + (3,), dtype=wi.dtype, device=wi.device)
         for t in terms:
-            total = total + t.coeff * self._lobe_eval(t.lobe, wi, wo)
+            total = total + t.coeff * _kind(t.lobe).eval(self, t.lobe, wi, wo)
         return total
 
     # ---- importance sampling -------------------------------------------------------
@@ -211,9 +183,9 @@ class LayeredBsdf:
     def pdf(self, wi: Tensor, wo: Tensor) -> Tensor:
         """Solid-angle pdf of ``sample``, (N,)."""
         probs = self.selection_probabilities(wi)
-        pdf = probs[..., -1:] * wo[..., 2:3].clamp(min=0.0) / math.pi
+        pdf = probs[..., -1:] * _BASE_KIND.pdf(self, _BASE, wi, wo)
         for j, lobe in enumerate(self.lobes):
-            pdf = pdf + probs[..., j:j + 1] * self._lobe_pdf(lobe, wi, wo)
+            pdf = pdf + probs[..., j:j + 1] * _kind(lobe).pdf(self, lobe, wi, wo)
         return pdf.squeeze(-1)
 
     def sample(self, wi: Tensor, u: Tensor) -> Tensor:
@@ -221,28 +193,16 @@ class LayeredBsdf:
         probs = self.selection_probabilities(wi)
         cdf = probs.cumsum(-1)
         choice = (u[..., :1] >= cdf[..., :-1]).sum(-1)
-        wo = _cosine_sample(u[..., 1:3])
+        wo = _BASE_KIND.sample(self, _BASE, wi, u[..., 1:3], torch.arange(len(wi), device=wi.device))
         for j, lobe in enumerate(self.lobes):
             rows = (choice == j).nonzero(as_tuple=True)[0]
             if rows.numel():
-                wo[rows] = self._lobe_sample(lobe, wi[rows], u[rows, 1:3], rows)
+                wo[rows] = _kind(lobe).sample(self, lobe, wi[rows], u[rows, 1:3], rows)
         return wo
-
-
-def _rows(x: Tensor, rows: Tensor) -> Tensor:
-    """Select per-point rows of a parameter, leaving broadcast (1, C) parameters as they are."""
-    return x if x.shape[0] == 1 else x[rows]
 
 
 def _ones3(like: Tensor) -> Tensor:
     return torch.ones(like.shape[:-1] + (3,), dtype=like.dtype, device=like.device)
-
-
-def _cosine_sample(u: Tensor) -> Tensor:
-    r = u[..., 0].sqrt()
-    phi = 2.0 * math.pi * u[..., 1]
-    z = (1.0 - u[..., 0]).clamp(min=0.0).sqrt()
-    return torch.stack([r * phi.cos(), r * phi.sin(), z], dim=-1)
 
 
 def constant_scalars(params: Mapping[str, Tensor]) -> dict[str, float]:
