@@ -25,7 +25,7 @@ the add-on's preview does. CLIP-FID, CMMD and LPIPS need weights that cannot be
 downloaded here; they are skipped (noted in the output).
 
 Writes docs/reports/generate_eval[_real][_seedS].json and .png (PSNR and FLIP per
-method); the gallery of generated materials is bench/generate_gallery.py.
+method); bench/generate_prompts.py draws the gallery of generated materials.
 
     python -m bench.generate_eval [--real] [--seed S] [--checkpoint DIR] [--objects N]
 """
