@@ -43,7 +43,7 @@ from bench.common import REPORTS, add_out_argument, pyplot, save_chart, write_re
 from support.blender_child import run_blender
 from support.extension import build_extension, script
 from support.paths import SHARED_ASSETS
-from torch_models.neural import weights
+from torch_models.neural import trained
 from torch_models.neural.evaluate import DEFAULT_PROBE
 from torch_models.render.flip import flip_map
 
@@ -329,8 +329,8 @@ def main() -> None:
 def run(args: argparse.Namespace, zip_path: Path) -> None:
     """Every asset with the extension ``zip_path``; the report and the sheet rewritten after each."""
     bundled = bundled_decoder_sha256(zip_path)
-    if bundled != weights.digest():
-        raise SystemExit(f"the extension ships decoder {bundled[:8]}, not the shipped {weights.digest()[:8]}")
+    if bundled != trained.digest():
+        raise SystemExit(f"the extension ships decoder {bundled[:8]}, not the shipped {trained.digest()[:8]}")
     report = dict(probe=DEFAULT_PROBE.name, extension=zip_path.name,
                   extension_sha256=hashlib.sha256(zip_path.read_bytes()).hexdigest(),
                   settings=dict(fit_steps=args.steps, texture_size=args.texture_size, render_size=args.size,
@@ -347,7 +347,7 @@ def run(args: argparse.Namespace, zip_path: Path) -> None:
         record["load_average_after"] = os.getloadavg()
         report["assets"][name] = record
         report["all_ok"] = all(r["ok"] for a in report["assets"].values() for r in a["records"])
-        write_report(args.out, report, decoders=[weights.SHIPPED])
+        write_report(args.out, report, decoders=[trained.SHIPPED])
         rows[name] = (record, images)
         step_sheet(rows, args.sheet)
         print(name, {r["step"]: (r["ok"], round(r["seconds"], 1)) for r in record["records"]},

@@ -22,14 +22,15 @@ from support.agreement_cases import cases
 from bench.common import add_out_argument, pyplot, save_chart, write_report
 from richmat_addon.core.enhancement_types import TYPES
 from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors
-from torch_models.neural import weights
+from torch_models.neural import trained
+from torch_models.neural.model import NeuralModel
 from torch_models.neural.fitting import fit_latents
 from torch_models.neural.quadrature import half_vector_nodes
 
 VIEW_COSINES = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2, 0.15, 0.1, 0.05)
 
 
-def albedos(model: weights.NeuralModel, vectors: np.ndarray, z: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
+def albedos(model: NeuralModel, vectors: np.ndarray, z: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
     """(K, A) luminance albedo of the analytic neural part and of f_neu at ``VIEW_COSINES``."""
     analytic, neural = np.zeros((2, len(vectors), len(VIEW_COSINES)))
     with torch.no_grad():
@@ -51,11 +52,11 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--steps", type=int, default=400, help="fit steps, as fit_flip")
     add_out_argument(parser, "albedo_agreement.json")
-    parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
+    parser.add_argument("--weights", type=Path, default=trained.SHIPPED)
     args = parser.parse_args()
 
     start = time.perf_counter()
-    model = weights.load(args.weights)
+    model = trained.load(args.weights)
     drawn = cases(args.seed, args.per_type, 0)
     vectors = np.stack([c.vector() for c in drawn])
     z = fit_latents(model, vectors, args.steps, seed=args.seed)

@@ -41,7 +41,7 @@ from bench.common import (FLIP_CONVENTION, REPO, add_out_argument, pyplot, run_p
                           write_report)
 from richmat_addon.core.neural_osl import neural_osl_source
 from richmat_addon.core.tensor_file import read_safetensors
-from torch_models.neural import weights
+from torch_models.neural import trained
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.closure_form import ClosureForm
 from torch_models.neural.evaluate import DEFAULT_PROBE, BallSetup
@@ -119,7 +119,7 @@ def emission_shader(commit: str, tensors: dict[str, np.ndarray], tmp: Path) -> s
             del sys.modules[name]
 
 
-def torch_images(model: weights.NeuralModel, case: dict, setup: BallSetup, sun: Sun | None) -> dict[str, np.ndarray]:
+def torch_images(model: trained.NeuralModel, case: dict, setup: BallSetup, sun: Sun | None) -> dict[str, np.ndarray]:
     """AgX images of the full decoder (seeds 0 and 1) and of its closure form (seed 0)."""
     closure = dataclasses.replace(model, decoder=ClosureForm(model.decoder))
     out = {}
@@ -145,7 +145,7 @@ def cycles_images(shader: str, job_cases: list[dict], sun: Sun | None, args: arg
     return {k: agx(np.load(tmp / f"{k}.npy")) for k in seconds}, seconds
 
 
-def scene_rows(name: str, sun: Sun | None, model: weights.NeuralModel, shaders: dict[str, str],
+def scene_rows(name: str, sun: Sun | None, model: trained.NeuralModel, shaders: dict[str, str],
                job_cases: list[dict], setup: BallSetup, args: argparse.Namespace, tmp: Path) -> tuple[list, list]:
     rendered = {kind: cycles_images(src, job_cases, sun, args, tmp / f"{name}_{kind}") for kind, src in shaders.items()}
     rows, sheet = [], []
@@ -239,8 +239,8 @@ def main() -> None:
     add_out_argument(parser, "closure_preview.json")
     args = parser.parse_args()
     start = time.perf_counter()
-    folder = weights.SHIPPED
-    model = weights.load(folder)
+    folder = trained.SHIPPED
+    model = trained.load(folder)
     setup = BallSetup.default(args.resolution, args.spp, 0)
     tensors = read_safetensors(folder / "weights.safetensors")
     job_cases = []

@@ -99,6 +99,6 @@ def add_weights_argument(parser: argparse.ArgumentParser) -> None:
 
 def weights_folders(args: argparse.Namespace) -> list[Path]:
     """The folders ``--weights`` named, or the shipped decoder's."""
-    from torch_models.neural import weights
+    from torch_models.neural import trained
 
-    return args.weights or [weights.SHIPPED]
+    return args.weights or [trained.SHIPPED]

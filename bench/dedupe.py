@@ -29,7 +29,8 @@ from bench.common import REPO, add_out_argument, pyplot, save_chart, write_repor
 from richmat_addon.core import material_folder
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
 from torch_models.cli import main as cli
-from torch_models.neural import weights
+from torch_models.neural import trained
+from torch_models.neural.model import NeuralModel
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.evaluate import DEFAULT_PROBE, compare
 from torch_models.neural.fitting import fit_latents
@@ -72,7 +73,7 @@ def crop_vectors(folder: Path, mv: MaterialVectors) -> tuple[np.ndarray, np.ndar
     return mv.unique[mv.inverse[rows]], texel_colours(folder, (h, w), rows)
 
 
-def equal_budget_fits(model: weights.NeuralModel, vectors: np.ndarray, seed: int) -> dict[str, tuple]:
+def equal_budget_fits(model: NeuralModel, vectors: np.ndarray, seed: int) -> dict[str, tuple]:
     """Latents per texel: fitted per texel, or per representative and shared (same samples per vector)."""
     uniq, inverse = np.unique(vectors, axis=0, return_inverse=True)
     out = {}
@@ -87,13 +88,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--assets", type=Path, default=REPO.parent / "shared" / "assets" / "models")
-    parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
+    parser.add_argument("--weights", type=Path, default=trained.SHIPPED)
     add_out_argument(parser, "dedupe.json")
     args = parser.parse_args()
     if not args.assets.is_dir():
         raise SystemExit(f"{args.assets}: no sample assets here")
 
-    model = weights.load(args.weights)
+    model = trained.load(args.weights)
     env = EnvMap.load(DEFAULT_PROBE)
     materials, crops = [], []
     with tempfile.TemporaryDirectory(prefix="richmat_dedupe_") as tmp:

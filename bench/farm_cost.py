@@ -49,7 +49,8 @@ from bench.dedupe import CROP, crop_rows, flat_patch, texel_colours
 from richmat_addon.core.stage_clock import StageClock
 from richmat_addon.core.texel_vectors import QUANT, read_vectors, texel_matrix
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
-from torch_models.neural import weights
+from torch_models.neural import trained
+from torch_models.neural.model import NeuralModel
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.evaluate import DEFAULT_PROBE, compare
 from torch_models.neural.fitting import fit_latents
@@ -134,14 +135,14 @@ class Accuracy:
             analytic = LayeredBsdf(params_from_vectors(torch.from_numpy(vectors[self.rows])), self.colours)
             self.reference = flat_patch(lambda n: analytic, env, CROP, 0)
 
-    def flip(self, model: weights.NeuralModel, z: torch.Tensor) -> float:
+    def flip(self, model: NeuralModel, z: torch.Tensor) -> float:
         """FLIP of the neural crop, ``z`` per texel of ``rows``."""
         neural = NeuralBsdf(model, z, self.colours)
         with torch.no_grad():
             return compare(self.reference, flat_patch(lambda n: neural, self.env, CROP, 0)).flip
 
 
-def fit_at_step(model: weights.NeuralModel, folder: Path, step: float, accuracy: Accuracy) -> dict:
+def fit_at_step(model: NeuralModel, folder: Path, step: float, accuracy: Accuracy) -> dict:
     """The fit stage of one material at ``step``, CPU-timed; the crop's FLIP when it has one."""
     clock = StageClock()
     with clock.stage("read"):
@@ -156,7 +157,7 @@ def fit_at_step(model: weights.NeuralModel, folder: Path, step: float, accuracy:
     return row
 
 
-def sweep(farm: dict, steps: list[float], model: weights.NeuralModel, env: EnvMap) -> list[dict]:
+def sweep(farm: dict, steps: list[float], model: NeuralModel, env: EnvMap) -> list[dict]:
     """``fit_at_step`` for every material of the farm's asset and every step."""
     rows = []
     for folder in sorted(Path(farm["folder"]).glob("materials/*/params.json")):
@@ -249,7 +250,7 @@ def main() -> None:
     add_out_argument(parser, "farm_cost.json")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    model, env = weights.load(weights.SHIPPED), EnvMap.load(DEFAULT_PROBE)
+    model, env = trained.load(trained.SHIPPED), EnvMap.load(DEFAULT_PROBE)
     steps = sorted({1 / n for n in args.sweep} | {QUANT}, reverse=True)
     table, farms, fits = [], [], []
     with tempfile.TemporaryDirectory(prefix="richmat_farm_cost_") as tmp:
@@ -274,7 +275,7 @@ def main() -> None:
                                for side in SIDES},
               "biggest_stage": {side: max(STAGES, key=lambda s: sum(r[side][s] for r in table)) for side in SIDES},
               "cost_model": {side: cost_model(total[side]) for side in SIDES}}
-    write_report(args.out, report, [weights.SHIPPED])
+    write_report(args.out, report, [trained.SHIPPED])
     chart(report, args.out.with_suffix(".png"))
     print(json.dumps({k: report[k] for k in ("biggest_stage", "stage_totals", "sweep_mean_crop_flip", "cost_model")},
                      indent=1))

@@ -25,14 +25,14 @@ import torch
 from bench.common import add_out_argument, pyplot, save_chart, write_report
 from bench.fit_full_size import ADDON_FIT_STEPS, enhance_asset
 from richmat_addon.core.texel_vectors import texel_matrix
-from torch_models.neural import weights
+from torch_models.neural import trained
 from torch_models.neural.fitting import FIT_BATCH, SAMPLES_PER_VECTOR, fit_latents, held_out_loss
 from torch_models.neural.material_vectors import read_vectors
 
 BUDGETS = {"shared": 0, "per vector": SAMPLES_PER_VECTOR}  # fit_latents' per_vector
 
 
-def sweep(model: weights.NeuralModel, folder: Path, steps: list[int], texels: int, fit_steps: int) -> list[dict]:
+def sweep(model: trained.NeuralModel, folder: Path, steps: list[int], texels: int, fit_steps: int) -> list[dict]:
     """Per cluster step 1/N and budget: vectors fitted, CPU seconds, held-out loss of the sampled texels."""
     _, vectors = texel_matrix(folder)
     rows = np.random.default_rng(0).choice(len(vectors), texels, replace=False)
@@ -84,14 +84,14 @@ def main() -> None:
     add_out_argument(parser, "fit_budget.json")
     args = parser.parse_args()
     torch.set_num_threads(1)
-    model = weights.load(weights.SHIPPED)
+    model = trained.load(trained.SHIPPED)
     with tempfile.TemporaryDirectory(prefix="richmat_fit_budget_") as tmp:
         enhance_asset(args.asset, args.type, Path(tmp))
         fits = sweep(model, Path(tmp) / args.material, args.sweep, args.texels, args.steps)
     report = {"asset": args.asset, "material": args.material, "type": args.type, "fit_steps": args.steps,
               "texels": args.texels, "fit_batch": FIT_BATCH, "samples_per_vector": SAMPLES_PER_VECTOR,
               "threads": 1, "fits": fits}
-    write_report(args.out, report, [weights.SHIPPED])
+    write_report(args.out, report, [trained.SHIPPED])
     chart(report, args.out.with_suffix(".png"))
 
 

@@ -22,7 +22,7 @@ import torch
 from bench.agreement_cases import cases
 from bench.common import REPORTS, add_out_argument, pyplot, save_chart, write_report
 from richmat_addon.core import fit_error as grades
-from torch_models.neural import weights
+from torch_models.neural import trained
 from torch_models.neural.energy import fit_bounded
 from torch_models.neural.fit_error import vector_errors
 from torch_models.neural.fitting import fit_latents
@@ -36,7 +36,7 @@ def main() -> int:
     add_out_argument(parser, "fit_error_calibration.json")
     args = parser.parse_args()
     started = time.perf_counter()
-    model = weights.load(weights.SHIPPED)
+    model = trained.load(trained.SHIPPED)
     table1 = json.loads(args.table1.read_text())
     measured = next(d for d in table1["decoders"] if d["decoder_sha256"] == model.digest)
     drawn = cases(table1["seed"], table1["per_type"], 0)
@@ -54,7 +54,7 @@ def main() -> int:
               "thresholds": {"good": grades.GOOD, "poor": grades.POOR},
               "flip_bands": {"good": FLIP_GOOD, "poor": FLIP_POOR}, "agreement": agreement(error, flip),
               "wall_seconds": time.perf_counter() - started}
-    write_report(args.out, report, [weights.SHIPPED])
+    write_report(args.out, report, [trained.SHIPPED])
     chart(error, flip, args.out.with_suffix(".png"))
     print(f"spearman {report['spearman']:.3f}; agreement {report['agreement']}")
     return 0

@@ -32,8 +32,8 @@ from bench.common import (FLIP_CONVENTION, TARGET_MEDIAN, TARGET_WORST, add_out_
                           pyplot, save_chart, target_lines, weights_folders, write_report)
 from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.schema import CHANNEL_SLICES
-from torch_models.neural import weights
-from torch_models.neural.energy import QUADRATURE_TOLERANCE
+from torch_models.neural import trained
+from torch_models.neural.furnace import QUADRATURE_TOLERANCE
 from torch_models.neural.evaluate import (BallSetup, fit_and_compare, reference_furnace, render_reference,
                                           side_by_side)
 
@@ -84,7 +84,7 @@ def summarise(rows: list[dict], masks: dict[str, np.ndarray]) -> tuple[dict, dic
 
 def evaluate(folder: Path, table: Table1, steps: int) -> tuple[dict, dict]:
     """One decoder's results on the drawn materials, and its worst comparison per type."""
-    model = weights.load(folder)
+    model = trained.load(folder)
     start = time.perf_counter()
     results, bounded = fit_and_compare(table.setup, model, table.vectors, table.base_colors, steps, table.references)
     check, rows, worst = bounded.check, [], {}
@@ -106,7 +106,7 @@ def evaluate(folder: Path, table: Table1, steps: int) -> tuple[dict, dict]:
 def ranked(per_type: int, seed: int) -> list[dict]:
     """The rows of a Table 1 run of the shipped decoder, worst FLIP first: what the benches that
     study the worst materials start from."""
-    result, _ = evaluate(weights.SHIPPED, Table1.draw(per_type, seed), STEPS)
+    result, _ = evaluate(trained.SHIPPED, Table1.draw(per_type, seed), STEPS)
     return sorted(result["materials"], key=lambda r: -r["flip"])
 
 

@@ -26,7 +26,8 @@ import torch
 from bench.common import add_out_argument, add_weights_argument, pyplot, save_chart, weights_folders, write_report
 from support.paths import SHARED_ASSETS
 from torch_models.cli import main as cli
-from torch_models.neural import weights
+from torch_models.neural import trained
+from torch_models.neural.model import NeuralModel
 from torch_models.neural.energy import fit_bounded
 from torch_models.neural.fitting import fit_latents
 from torch_models.neural.material_vectors import read_vectors
@@ -43,7 +44,7 @@ def enhance_asset(name: str, kind: str, out: Path) -> None:
         raise SystemExit(f"enhance failed on {name}")
 
 
-def fit_stages(model: weights.NeuralModel, folder: Path, steps: int, furnace_sample: int) -> dict:
+def fit_stages(model: NeuralModel, folder: Path, steps: int, furnace_sample: int) -> dict:
     """Seconds per stage of fitting one material folder."""
     t0 = time.perf_counter()
     mv = read_vectors(folder)
@@ -77,7 +78,7 @@ def main() -> None:
     add_out_argument(parser, "fit_full_size.json")
     args = parser.parse_args()
     folders = weights_folders(args)
-    models = [weights.load(f) for f in folders]
+    models = [trained.load(f) for f in folders]
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -31,7 +31,8 @@ import torch
 
 from support.agreement_cases import cases
 from bench.common import add_out_argument, add_weights_argument, pyplot, save_chart, weights_folders, write_report
-from torch_models.neural import weights
+from torch_models.neural import trained
+from torch_models.neural.model import NeuralModel
 from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference
 from torch_models.neural.fitting import FIT_BATCH, fit_latents
 from torch_models.neural.hybrid import HybridDecoder
@@ -40,7 +41,7 @@ from torch_models.neural.networks import LATENT
 STEPS = (0, 25, 50, 100, 200, 400, 800)
 
 
-def fit_variant(model: weights.NeuralModel, vectors: np.ndarray, start: str, steps: int,
+def fit_variant(model: NeuralModel, vectors: np.ndarray, start: str, steps: int,
                 seed: int) -> tuple[torch.Tensor, float]:
     """Latents and wall seconds for one start ('encoder' or 'random') and step count."""
     t0 = time.perf_counter()
@@ -66,7 +67,7 @@ def matmul_peak_flops(size: int = 2048, repeats: int = 5) -> float:
 SHADING_DIRECTIONS = 64  # wo per shading point in the second regime (the OSL preview's default samples)
 
 
-def decoder_throughput(model: weights.NeuralModel, batch: int = 65536, repeats: int = 5,
+def decoder_throughput(model: NeuralModel, batch: int = 65536, repeats: int = 5,
                        shading: int = 1) -> tuple[float, int]:
     """Median decoder evaluations per second, and Linear-layer FLOPs per evaluation, with
     ``shading`` wo per (latent, wi): the hybrid's head runs once per such point."""
@@ -99,7 +100,7 @@ def decoder_throughput(model: weights.NeuralModel, batch: int = 65536, repeats: 
 
 def measure(folders: list[Path], vectors: np.ndarray, repeats: int, seed: int) -> dict[Path, dict]:
     """Fit seconds (median of ``repeats``, interleaved over decoders and variants) and latents per variant."""
-    models = {f: weights.load(f) for f in folders}
+    models = {f: trained.load(f) for f in folders}
     variants = [("encoder", 0)] + [(s, k) for k in STEPS[1:] for s in ("encoder", "random")]
     seconds = {f: {v: [] for v in variants} for f in folders}
     latents: dict[Path, dict] = {f: {} for f in folders}

@@ -25,7 +25,7 @@ the add-on's preview does. CLIP-FID, CMMD and LPIPS need weights that cannot be
 downloaded here; they are skipped (noted in the output).
 
 Writes docs/reports/generate_eval[_real][_seedS].json and .png (PSNR and FLIP per
-method); the gallery of generated materials is bench/generate_gallery.py.
+method); bench/generate_prompts.py draws the gallery of generated materials.
 
     python -m bench.generate_eval [--real] [--seed S] [--checkpoint DIR] [--objects N]
 """
@@ -53,7 +53,7 @@ from torch_models.generator.encoding import latent_texture
 from torch_models.generator.mesh_input import MeshInput
 from torch_models.generator.train import CorpusConfig, GeneratorTrainConfig, load_corpus
 from torch_models.generator.views import Textures, per_material
-from torch_models.neural import energy, weights
+from torch_models.neural import furnace, trained
 from torch_models.render.flip import mean_flip
 from torch_models.render.tonemap import agx
 
@@ -155,9 +155,9 @@ def invalid_share(latents: Textures, energy_scale: Textures, sample: int = 512) 
     packed = torch.from_numpy(np.unique(packed, axis=0).astype(np.float32))
     if len(packed) > sample:
         packed = packed[torch.randperm(len(packed), generator=torch.Generator().manual_seed(0))[:sample]]
-    model = weights.load()
-    raw = energy.furnace(model, packed[:, :6]).failing
-    written = energy.furnace(model, packed[:, :6], seed=1, energy_scale=packed[:, 6]).failing
+    model = trained.load()
+    raw = furnace.furnace(model, packed[:, :6]).failing
+    written = furnace.furnace(model, packed[:, :6], seed=1, energy_scale=packed[:, 6]).failing
     return float(raw.float().mean()), float(written.float().mean())
 
 
@@ -256,7 +256,7 @@ def main() -> int:
               "median_cpu_seconds_per_object": float(np.median([r["cpu_seconds"] for r in rows])),
               "min_seen_share": min(r["projection"]["seen"] for r in rows),
               "note": SKIPPED_METRICS, "objects": rows}
-    write_report(out, report, [weights.SHIPPED], args.checkpoint)
+    write_report(out, report, [trained.SHIPPED], args.checkpoint)
     chart(report, out.with_suffix(".png"))
     print(json.dumps({k: report[k] for k in ("overall", "invalid_generated_texels", "targets")}, indent=1))
     print(SKIPPED_METRICS)

@@ -35,7 +35,7 @@ from torch_models.generator.dit import LatentGenerator
 from torch_models.generator.mesh_input import MaterialInput, MeshInput
 from torch_models.generator.train import GeneratorTrainConfig
 from torch_models.generator.views import Mesh, render_intrinsics
-from torch_models.neural import weights
+from torch_models.neural import trained
 
 ISLAND_CAPS = (None, 1 / 16, 1 / 64, 1 / 256)  # max chart area as a share of the surface (None: xatlas default)
 TUBE_RADII = (0.25, 0.1, 0.04, 0.015)  # torus minor radius, major radius 0.5
@@ -150,7 +150,7 @@ def main() -> int:
             similarity = float((captions @ text.embed([prompt])[0]).max())
             report["prompts"].append({"group": group, "prompt": prompt, "type": type_, "warnings": warnings,
                                       "nearest_caption_cosine": similarity})
-    write_report(args.out, report, [weights.SHIPPED], args.checkpoint)
+    write_report(args.out, report, [trained.SHIPPED], args.checkpoint)
     plot(report, args.out.with_suffix(".png"))
     print(f"wrote {args.out}")
     return 0

@@ -38,7 +38,7 @@ from torch_models.generator import guidance_by_type
 from torch_models.generator import generate as gen
 from torch_models.generator.mesh_input import MeshInput
 from torch_models.generator.train import GeneratorTrainConfig
-from torch_models.neural import weights
+from torch_models.neural import trained
 
 _WORKER: dict = {}  # per worker process: the generator, its config and the objects, loaded once
 PER_TYPE = "per type"  # the summary row of the chosen table (each object at its type's guidance)
@@ -213,7 +213,7 @@ def main() -> int:
               "shipped": guidance_by_type(), "table": table,
               "target_sensitivity": TARGET, "per_type_psnr": per_type_psnr(rows, guidances),
               "summary": summary, "rows": rows}
-    write_report(args.out, report, [weights.SHIPPED], args.checkpoint)
+    write_report(args.out, report, [trained.SHIPPED], args.checkpoint)
     chart(report, args.out.with_suffix(".png"))
     print(json.dumps({"table": table, "summary": summary}, indent=1))
     return 0

@@ -38,7 +38,7 @@ from torch_models.generator import (DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEW
                                     procedural)
 from torch_models.generator import generate as gen
 from torch_models.generator.mesh_input import MeshInput
-from torch_models.neural import weights
+from torch_models.neural import trained
 
 PROMPT_TYPES = (0, 1, 2, 4)  # haze, dust, clearcoat, inner scattering: what a dielectric can be asked for
 TARGET = 0.7
@@ -196,9 +196,9 @@ def main() -> int:
     args.out = args.out or REPORTS / ("generate_prompts_real.json" if args.real else "generate_prompts.json")
     torch.set_num_threads(1)
     report, cells = measure(args)
-    write_report(args.out, report, [weights.SHIPPED], args.checkpoint)
+    write_report(args.out, report, [trained.SHIPPED], args.checkpoint)
     chart(report, args.out.with_suffix(".png"))
-    gallery(cells, args.out.with_name(args.out.stem + "_gallery.png"), provenance([weights.SHIPPED], args.checkpoint))
+    gallery(cells, args.out.with_name(args.out.stem + "_gallery.png"), provenance([trained.SHIPPED], args.checkpoint))
     print(json.dumps({k: report[k] for k in ("ratio", "passed", "per_pair", "median_psnr")}, indent=1))
     return 0
 

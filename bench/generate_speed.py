@@ -28,7 +28,7 @@ import torch
 from bench.common import add_out_argument, pyplot, save_chart, write_report
 from bench.generate_eval import held_out, held_out_indices, latents_of, psnr, render
 from torch_models.generator import generate as gen
-from torch_models.neural import weights
+from torch_models.neural import trained
 
 STEPS = (2, 4, 8, 18, 32)
 VIEWS = (4, 8, 12, 16)
@@ -94,7 +94,7 @@ def main() -> int:
     report = {"checkpoint": str(args.checkpoint), "objects": [o.asset.asset_id for o in objects],
               "seeds": seeds, "threads": 1, "eval_views": args.eval_views, "tolerance_db": TOLERANCE_DB,
               "chosen": {k: chosen[k] for k in CENTRE}, "rows": rows}
-    write_report(args.out, report, [weights.SHIPPED], args.checkpoint)
+    write_report(args.out, report, [trained.SHIPPED], args.checkpoint)
     plot(report, args.out.with_suffix(".png"))
     print(f"chosen default: {report['chosen']}")
     return 0

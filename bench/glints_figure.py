@@ -22,9 +22,9 @@ from bench.common import add_out_argument, provenance, pyplot, save_chart
 from bench.neural_failure_modes import enhanced_vector, view_cosines
 from richmat_addon.core.preview import PreviewScene
 from richmat_addon.core.schema import CHANNEL_SLICES
-from torch_models.neural import weights
+from torch_models.neural import trained
 from torch_models.neural.bsdf import NeuralBsdf
-from torch_models.neural.energy import furnace
+from torch_models.neural.furnace import furnace
 from torch_models.neural.evaluate import BallSetup
 from torch_models.neural.fitting import fit_latents
 from torch_models.neural.glints import GlintPattern, Glints
@@ -42,7 +42,7 @@ def render(setup: BallSetup, bsdf_at) -> np.ndarray:  # type: ignore[no-untyped-
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--weights", type=Path, default=weights.SHIPPED)
+    parser.add_argument("--weights", type=Path, default=trained.SHIPPED)
     parser.add_argument("--resolution", type=int, default=256)
     parser.add_argument("--spp", type=int, default=64)
     parser.add_argument("--scale", type=float, default=20.0, help="glint cells per unit length (ball radius 1)")
@@ -50,7 +50,7 @@ def main() -> None:
     add_out_argument(parser, "glints.png")
     args = parser.parse_args()
 
-    model = weights.load(args.weights)
+    model = trained.load(args.weights)
     vector = enhanced_vector(BASE_COLOR, ROUGHNESS, 1.0, ENHANCE_SEED)
     z = fit_latents(model, vector[None], 100, batch=4096)
     scale = float(furnace(model, z).energy_scale()[0])

@@ -29,7 +29,8 @@ import torch
 
 from support.agreement_cases import cases
 from bench.common import add_out_argument, add_weights_argument, pyplot, save_chart, weights_folders, write_report
-from torch_models.neural import weights
+from torch_models.neural import trained
+from torch_models.neural.model import NeuralModel
 from torch_models.neural.energy import guard
 from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference
 from torch_models.neural.fitting import fit_latents
@@ -42,7 +43,7 @@ ENLARGE = 1.1
 def evaluate(folder: Path, args: argparse.Namespace, drawn: list, vectors: np.ndarray,
              references: list[np.ndarray], setup: BallSetup) -> tuple[dict, np.ndarray, np.ndarray]:
     """One decoder's block of the report, and its raw worst furnace albedos of sets (a) and (b)."""
-    model = weights.load(folder)
+    model = trained.load(folder)
     torch.manual_seed(args.seed)
     box = training_latent_box(model, seed=args.seed)
     lo, hi = enlarged(box, ENLARGE)
@@ -107,7 +108,7 @@ def main() -> None:
     sys.exit(0 if all(d["passed"] for d in decoders) else 1)
 
 
-def raw_and_guarded(model: weights.NeuralModel, z: torch.Tensor, seed: int) -> tuple[Validity, Validity]:
+def raw_and_guarded(model: NeuralModel, z: torch.Tensor, seed: int) -> tuple[Validity, Validity]:
     """Validity of the latents as decoded, and with the energy guard (re-checked on fresh samples)."""
     raw = check_latents(model, z, seed=seed)
     guarded = check_latents(model, z, seed=seed + 1000, energy_scale=guard(model, z, seed=seed))

@@ -47,11 +47,12 @@ from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.preview import PreviewScene
 from richmat_addon.core.schema import CHANNEL_SLICES
 from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors
-from torch_models.neural import weights
-from torch_models.neural.energy import REFIT_STEPS, fit_bounded
+from torch_models.neural import trained
+from torch_models.neural.energy import fit_bounded
+from torch_models.neural.mlp.energy import REFIT_STEPS
 from torch_models.neural.evaluate import BallSetup, Comparison, compare, render_neural, render_reference, side_by_side
 from torch_models.neural.fitting import fit_latents
-from torch_models.neural.weights import NeuralModel
+from torch_models.neural.model import NeuralModel
 from torch_models.render.camera import hit_sphere, primary_rays
 
 FULL = {"roughness": (0.02, 0.05, 0.1, 0.2, 0.4, 0.7, 1.0), "metalness": (0.0, 0.25, 0.4, 0.5, 0.6, 0.75, 1.0),
@@ -147,7 +148,7 @@ def albedo_errors(model: NeuralModel, vectors: np.ndarray, z: torch.Tensor, scal
 def evaluate(folder: Path, points: list[SweepPoint], references: list[np.ndarray], setup: BallSetup,
              steps: int, batch: int, albedo_n: int, seed: int) -> tuple[dict, Comparison]:
     """One decoder on every sweep point, fitted as ``fit`` does; its report block and worst comparison."""
-    model = weights.load(folder)
+    model = trained.load(folder)
     vectors = np.stack([p.vector for p in points])
     z = fit_latents(model, vectors, steps, batch=batch, seed=seed)
     bounded = fit_bounded(model, vectors, z, seed=seed, steps=min(steps, REFIT_STEPS))  # as `fit` does

@@ -31,7 +31,8 @@ from support.agreement_cases import cases
 from bench.common import (FLIP_CONVENTION, add_out_argument, add_weights_argument, contact_sheet, run_python,
                           weights_folders, write_report)
 from richmat_addon.core.schema import CHANNEL_SLICES
-from torch_models.neural import weights
+from torch_models.neural import trained
+from torch_models.neural.model import NeuralModel
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.evaluate import DEFAULT_PROBE, BallSetup
 from torch_models.render.ball import render_ball
@@ -85,7 +86,7 @@ for case in job["cases"]:
 """
 
 
-def torch_side(model: weights.NeuralModel, setup: BallSetup, spp: int) -> tuple[list[dict], dict, dict]:
+def torch_side(model: NeuralModel, setup: BallSetup, spp: int) -> tuple[list[dict], dict, dict]:
     """The cases' latents and base colours, their torch images and the torch-vs-torch noise floors."""
     job_cases, images, floors = [], {}, {}
     for case in cases(0, 1, 0):
@@ -115,7 +116,7 @@ def cycles_side(folder: Path, job_cases: list[dict], args: argparse.Namespace, t
 
 def measure(folder: Path, setup: BallSetup, args: argparse.Namespace, sheet: list) -> dict:
     """One weights folder's entry of the report; appends its rows to the contact sheet."""
-    model = weights.load(folder)
+    model = trained.load(folder)
     kind = model.decoder.kind
     job_cases, torch_images, floors = torch_side(model, setup, args.spp)
     print(f"{kind} {folder}: torch done", flush=True)

@@ -25,12 +25,13 @@ def untrained_model(tmp_path_factory: pytest.TempPathFactory):
     import torch
     from safetensors.torch import save_file
 
-    from torch_models.neural.networks import Decoder, Encoder, SamplingDecoder
-    from torch_models.neural.weights import load
+    from torch_models.neural.mlp.networks import Decoder, SamplingDecoder
+    from torch_models.neural.networks import Encoder
+    from torch_models.neural.trained import load
 
     torch.manual_seed(7)
     folder = tmp_path_factory.mktemp("untrained")
-    nets = {"encoder": Encoder(), "decoder": Decoder(), "sampler": SamplingDecoder()}
+    nets = {"encoder": Encoder(), "decoder": Decoder(64, 4), "sampler": SamplingDecoder()}
     save_file({f"{name}.{k}": v.contiguous() for name, net in nets.items() for k, v in net.state_dict().items()},
               str(folder / "weights.safetensors"))
     (folder / "state.json").write_text(json.dumps({"config": {"width": 64, "depth": 4}}))
@@ -133,7 +134,7 @@ def test_diffuse_base_reads_t_as_the_torch_renderer_does(blender_run, tmp_path: 
     """The MLP decoder's T varies with wo (0.42 at wo = wi, 0.69 averaged, for this latent at normal
     incidence): the base alone (no lobe directions) must match the torch renderer's, which reads T at every
     wo, in mean over the ball within 4 % (reading T at wo = wi was 12 % too bright)."""
-    from torch_models.neural.weights import load
+    from torch_models.neural.trained import load
 
     latent = [-0.9966, -0.888, -0.2335, 0.1728, 0.9929, 0.9932]  # the encoder's latent of a Type 4 dielectric
     base = [0.3048, 0.4093, 0.0741]

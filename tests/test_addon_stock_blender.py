@@ -16,7 +16,7 @@ from richmat_addon.core import neural_folder
 from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.neural_encoder import Encoder
 from richmat_addon.core.texel_vectors import read_vectors
-from torch_models.neural import weights
+from torch_models.neural import trained
 
 from support.extension import script
 from .test_addon_extension import extension_zip  # noqa: F401  (session fixture)
@@ -99,10 +99,10 @@ def test_stock_blender_fits_with_the_numpy_encoder_and_previews(shared_assets: P
     assert "Traceback" not in result["generate"][1]
 
     folder = neural_folder.read(Path(result["neural_dir"]))
-    assert folder.record["encoder_only"] is True and folder.decoder_sha256 == weights.digest(weights.SHIPPED)
+    assert folder.record["encoder_only"] is True and folder.decoder_sha256 == trained.digest(trained.SHIPPED)
     assert result["latents"] == ["latent_0.exr", "latent_1.exr"]
     vectors = read_vectors(Path(result["bake_dir"]))
-    encoder = Encoder.load(weights.SHIPPED)
+    encoder = Encoder.load(trained.SHIPPED)
     expected = vectors.texels(encoder(encoder.floored(vectors.unique)))
     latents = np.concatenate([read_exr(p) for p in folder.latent_paths], -1)
     assert latents.shape == (*vectors.shape, 6)

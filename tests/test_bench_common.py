@@ -8,7 +8,7 @@ from pathlib import Path
 from support.reports import write_report
 from tests.test_docs_reports import problems
 from torch_models.generator.generate import SHIPPED as GENERATOR
-from torch_models.neural import weights
+from torch_models.neural import trained
 
 BENCH = Path(__file__).resolve().parents[1] / "bench"
 
@@ -20,9 +20,9 @@ def test_no_bench_edits_sys_path() -> None:
 
 def test_a_written_report_records_its_provenance(tmp_path: Path) -> None:
     out = tmp_path / "reports" / "r.json"
-    write_report(out, {"checkpoint": str(GENERATOR), "n": 1}, [weights.SHIPPED], GENERATOR)
+    write_report(out, {"checkpoint": str(GENERATOR), "n": 1}, [trained.SHIPPED], GENERATOR)
     report = json.loads(out.read_text())
-    shipped = weights.digest()
+    shipped = trained.digest()
     assert report["n"] == 1
     assert report["provenance"]["decoder_sha256"] == {"torch_models/neural/weights": shipped}
     assert not problems(report, "[r](reports/r.json)", shipped)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from richmat_addon.core.schema import bounds
-from torch_models.neural import fitting, weights
+from torch_models.neural import fitting, trained
 from torch_models.neural.data import parameter_vectors
 
 N, COPIES, STEPS, BATCH, PER_VECTOR = 32, 8, 100, 128, 16
@@ -19,7 +19,7 @@ def jittered_copies(vectors: np.ndarray, copies: int, rng: np.random.Generator) 
 
 def test_a_vector_fits_as_well_among_eight_times_as_many() -> None:
     rng = np.random.default_rng(3)
-    model = weights.load(weights.SHIPPED)
+    model = trained.load(trained.SHIPPED)
     alone = parameter_vectors(N, rng)
     crowd = jittered_copies(alone, COPIES, rng)
 

@@ -147,10 +147,10 @@ def test_a_generator_trained_for_another_encoder_is_flagged(tmp_path: Path) -> N
 
 def test_the_shipped_generator_matches_the_shipped_encoder() -> None:
     from torch_models.generator.generate import SHIPPED, encoder_mismatch
-    from torch_models.neural import weights
+    from torch_models.neural import trained
 
-    assert encoder_mismatch(SHIPPED, weights.encoder_digest()) is None
-    assert json.loads((SHIPPED / "state.json").read_text())["encoder_sha256"] == weights.encoder_digest()
+    assert encoder_mismatch(SHIPPED, trained.encoder_digest()) is None
+    assert json.loads((SHIPPED / "state.json").read_text())["encoder_sha256"] == trained.encoder_digest()
 
 
 def test_roughness_and_metalness_come_from_the_file_or_the_bake(tmp_path):
@@ -186,16 +186,16 @@ def test_roughness_and_metalness_come_from_the_file_or_the_bake(tmp_path):
 
 def test_energy_guard_darkens_only_the_texels_that_gain_energy() -> None:
     from torch_models.generator.generate import energy_guard
-    from torch_models.neural import energy, weights
+    from torch_models.neural import furnace, trained
 
-    model = weights.load(weights.BASELINE)  # the MLP kind: the shipped hybrid cannot gain energy
+    model = trained.load(trained.BASELINE)  # the MLP kind: the shipped hybrid cannot gain energy
     box = torch.rand(128, 6, generator=torch.Generator().manual_seed(0)) * 2.2 - 1.1
-    check = energy.furnace(model, box)
+    check = furnace.furnace(model, box)
     gaining, bounded = box[check.failing][0], box[~check.failing][0]
     texture = torch.stack([bounded] * 15 + [gaining]).reshape(4, 4, 6).numpy()
     scale = energy_guard(texture, model)
     assert scale.shape == (4, 4) and (scale.reshape(-1)[:15] == 1).all() and 0 < scale.reshape(-1)[15] < 1
-    fresh = energy.furnace(model, torch.from_numpy(texture.reshape(-1, 6)), seed=3,
+    fresh = furnace.furnace(model, torch.from_numpy(texture.reshape(-1, 6)), seed=3,
                         energy_scale=torch.from_numpy(scale.reshape(-1)))
     assert not fresh.failing.any()
 
@@ -204,17 +204,17 @@ def test_energy_guard_holds_the_quadrature_to_one_below_the_fits_tolerance() -> 
     """A texel just over 1 (under the fit check's quadrature tolerance) still gains energy
     in a render: the guard darkens it until the quadrature reads 1 at most."""
     from torch_models.generator.generate import energy_guard
-    from torch_models.neural import energy, quadrature, weights
+    from torch_models.neural import furnace, quadrature, trained
     from torch_models.neural.data import parameter_vectors
 
-    model = weights.load(weights.BASELINE)  # the MLP kind: the shipped hybrid cannot gain energy
+    model = trained.load(trained.BASELINE)  # the MLP kind: the shipped hybrid cannot gain energy
     with torch.no_grad():
         z = model.encoder(torch.from_numpy(parameter_vectors(256, np.random.default_rng(0))))
     sums = quadrature.half_vector_albedo(model, z)
     albedo = sums.albedo(torch.ones(len(z))).max(1).values
-    pick = ((albedo > 1.0) & (albedo <= 1.0 + energy.QUADRATURE_TOLERANCE)).nonzero(as_tuple=True)[0][:4]
+    pick = ((albedo > 1.0) & (albedo <= 1.0 + furnace.QUADRATURE_TOLERANCE)).nonzero(as_tuple=True)[0][:4]
     near, near_sums = z[pick], sums[pick]
-    assert len(near) == 4 and not energy.furnace(model, near, quadrature=near_sums).failing.any()  # the fit's check
+    assert len(near) == 4 and not furnace.furnace(model, near, quadrature=near_sums).failing.any()  # the fit's check
     scale = torch.from_numpy(energy_guard(near.numpy()[None], model).reshape(-1))
     assert (scale < 1).all()
     assert (near_sums.albedo(scale).max(1).values <= 1.0 + 1e-6).all()

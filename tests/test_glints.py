@@ -5,8 +5,10 @@ import torch
 
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.glints import GlintPattern, SimplexNoise3
-from torch_models.neural.networks import Decoder, Encoder, SamplingDecoder
-from torch_models.neural.weights import NeuralModel
+from torch_models.neural.loss import LOSS_WEIGHTS
+from torch_models.neural.mlp.networks import Decoder, SamplingDecoder
+from torch_models.neural.networks import Encoder
+from torch_models.neural.model import NeuralModel
 
 
 def _points(n: int, seed: int = 1, spread: float = 50.0) -> torch.Tensor:
@@ -58,7 +60,7 @@ def test_glints_are_continuous_and_follow_the_half_vector() -> None:
 
 def test_zero_strength_leaves_the_neural_bsdf_unchanged() -> None:
     torch.manual_seed(0)
-    model = NeuralModel(Encoder(), Decoder(), SamplingDecoder(), "untrained")
+    model = NeuralModel(Encoder(), Decoder(64, 4), SamplingDecoder(), "untrained", 0.0, 0.0, LOSS_WEIGHTS[1])
     n = 4096
     p = _directions(n, 3)
     wi, wo = _directions(n, 4), _directions(n, 5)

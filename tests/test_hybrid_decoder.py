@@ -12,10 +12,12 @@ from torch_models.brdf import tables
 from torch_models.brdf.ggx import ggx_single_scatter
 from torch_models.brdf.lobes import sheen_albedo, sheen_eval
 from torch_models.cli import main
-from torch_models.neural import decoders, energy, quadrature, weights
+from torch_models.neural import energy, furnace, kinds, quadrature, trained
 from torch_models.neural.data import cosine_hemisphere, view_directions
 from torch_models.neural.hybrid import HybridDecoder, LobeSampler
-from torch_models.neural.networks import Decoder, direction_features
+from torch_models.neural.hybrid_kind import KIND, HybridConfig, bound_furnace
+from torch_models.neural.model import NeuralModel
+from torch_models.neural.networks import Encoder, direction_features
 from tests.chi2 import chi2_test, sidak_threshold
 from tests.test_neural_training import TINY
 
@@ -24,7 +26,7 @@ def scrambled(seed: int, scale: float, unit_lobes: bool = False, sheen: bool = F
     """A hybrid decoder with random weights ``scale`` times larger than the default init: extreme
     lobes (mirror-sharp and fully rough, F0 near 0 or 1, gates shut or open) a trained one may reach."""
     torch.manual_seed(seed)
-    dec = HybridDecoder(unit_lobes=unit_lobes, sheen=sheen)
+    dec = KIND.build_decoder(HybridConfig(unit_lobes=unit_lobes, sheen=sheen))
     with torch.no_grad():
         for p in dec.parameters():
             p.mul_(scale)
@@ -133,7 +135,8 @@ def test_lobe_sampler_matches_its_pdf(cos_i: float, sheen: bool) -> None:
 def train_tiny_hybrid(folder: Path, **options: object) -> Path:
     """A 40-step hybrid run in ``folder``: its weights folder."""
     cfg = folder / "tiny.json"
-    cfg.write_text(json.dumps(dict(TINY, kind="hybrid", steps=40, checkpoint_every=20, lobe_alpha_floor=[0.05, 0.002],
+    mlp_only = ("sampler_steps",)
+    cfg.write_text(json.dumps(dict({k: v for k, v in TINY.items() if k not in mlp_only}, kind="hybrid", steps=40, checkpoint_every=20, lobe_alpha_floor=[0.05, 0.002],
                                    **options)))
     assert main(["train-decoder", "--config", str(cfg), "--out", str(folder / "run")]) == 0
     return folder / "run"
@@ -151,10 +154,10 @@ def tiny_unit_hybrid(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_the_weights_folder_names_its_kind(tiny_hybrid: Path, tmp_path: Path) -> None:
-    model = weights.load(tiny_hybrid)
+    model = trained.load(tiny_hybrid)
     assert isinstance(model.decoder, HybridDecoder) and isinstance(model.sampler, LobeSampler)
     assert float(model.decoder.alpha_floor) == pytest.approx(0.002)  # the annealed floor's last value is kept
-    assert isinstance(weights.load().decoder, (Decoder, HybridDecoder))
+    assert trained.load().decoder.kind == "hybrid" and trained.load(trained.BASELINE).decoder.kind == "mlp"
     state = json.loads((tiny_hybrid / "state.json").read_text())
     assert state["config"]["kind"] == "hybrid" and state["step"] == 40  # no sampler phase to train
     bad = tmp_path / "bad"
@@ -162,23 +165,37 @@ def test_the_weights_folder_names_its_kind(tiny_hybrid: Path, tmp_path: Path) ->
     (bad / "weights.safetensors").write_bytes((tiny_hybrid / "weights.safetensors").read_bytes())
     (bad / "state.json").write_text(json.dumps({"step": 1, "config": dict(state["config"], kind="transformer")}))
     with pytest.raises(ValueError, match="unknown decoder kind 'transformer'"):
-        weights.load(bad)
-    assert decoders.KINDS == ("mlp", "hybrid")
+        trained.load(bad)
+    assert tuple(kinds.KINDS) == ("mlp", "hybrid")
+
+
+def test_each_kind_names_the_preview_shader_the_addon_picks_for_its_weights() -> None:
+    """The add-on, without torch, picks a preview shader by the weights' tensor names; each kind's entry
+    names its shader too, and for the shipped hybrid and the MLP baseline the two agree."""
+    from richmat_addon.core.neural_osl import neural_osl_source
+    from richmat_addon.core.neural_osl_parts import HEADER
+    from richmat_addon.core.tensor_file import read_safetensors
+
+    for folder, name in ((trained.SHIPPED, "hybrid"), (trained.BASELINE, "mlp")):
+        tensors = read_safetensors(folder / "weights.safetensors")
+        kind = kinds.of(trained.load(folder))
+        assert kind.name == name and neural_osl_source(tensors) == HEADER + kind.osl.source(tensors)
+    assert kinds.KINDS["hybrid"].osl is not kinds.KINDS["mlp"].osl
 
 
 def test_a_bounded_decoder_skips_the_furnace_repair(tiny_hybrid: Path) -> None:
     """Fits and generated latents of the hybrid pass as they are: no refit, no energy scale."""
-    model = weights.load(tiny_hybrid)
+    model = trained.load(tiny_hybrid)
     z = torch.rand(64, 6, generator=torch.Generator().manual_seed(0)) * 2.2 - 1.1
     assert (energy.guard(model, z) == 1).all()
     fitted = energy.fit_bounded(model, torch.zeros(64, 22).numpy(), z)
     assert fitted.counts() == {"checked": 64, "passed_as_fitted": 64, "passed_after_refit": 0, "repaired_by_scaling": 0}
-    measured = energy.furnace(model, z)  # the real furnace agrees with the bound
+    measured = furnace.furnace(model, z)  # the real furnace agrees with the bound
     assert not measured.failing.any() and (measured.albedo <= fitted.check.albedo + 2e-3).all()
 
 
 def test_unit_lobes_load_from_their_own_config_and_table(tiny_unit_hybrid: Path) -> None:
-    model = weights.load(tiny_unit_hybrid)
+    model = trained.load(tiny_unit_hybrid)
     assert model.decoder.unit_lobes and model.decoder.ggx_e.shape == (32, 32) and model.decoder.bounded
     z = torch.rand(32, 6, generator=torch.Generator().manual_seed(1)) * 2 - 1
     sums = quadrature.half_vector_albedo(model, z)
@@ -186,18 +203,25 @@ def test_unit_lobes_load_from_their_own_config_and_table(tiny_unit_hybrid: Path)
 
 
 def test_unit_lobes_divided_by_cycles_own_table_are_not_trusted_as_bounded() -> None:
-    """Cycles' table reads up to 0.86 % short between nodes: such a decoder goes through the furnace."""
-    dec = HybridDecoder(unit_lobes=True)
+    """Cycles' table reads up to 0.86 % short between nodes: such a decoder is refused, not checked
+    off its lobe weights as if it were bounded."""
+    dec = KIND.build_decoder(HybridConfig(unit_lobes=True)).eval()
     assert dec.bounded
     dec.ggx_e.copy_(tables.table("ggx_E", torch.device("cpu"), torch.float32))
     assert not dec.bounded
+    model = NeuralModel(Encoder(), dec, LobeSampler(dec), "cycles table", 1e-3, 1.0, 0.5)
+    z = torch.zeros(2, 6)
+    for call in (lambda: energy.guard(model, z), lambda: energy.fit_bounded(model, torch.zeros(2, 22).numpy(), z),
+                 lambda: bound_furnace(model, z)):
+        with pytest.raises(ValueError, match="not energy-bounded"):
+            call()
 
 
 def test_the_shipped_hybrid_passes_the_furnace_at_the_corners_of_the_latent_box() -> None:
     """Corner latents, where a diffusion sampler clamps: 32 azimuths cut the horizon at cos 0.05 so
     coarsely that they read up to 0.6 % high; the bounded decoder's quadrature reads them <= 1."""
-    model = weights.load()
+    model = trained.load()
     z = torch.tensor([[0.843, -1, -1, 1, -1, 1], [1, -1, -1, 1, -1, 0.695], [1, -1, -1, 1, -1, 1]])
-    coarse = quadrature.half_vector_albedo(model, z, energy.BOUNDED_QUADRATURE_THETA).albedo()
+    coarse = quadrature.half_vector_albedo(model, z, furnace.BOUNDED_QUADRATURE_THETA).albedo()
     assert (coarse[:, -1] > 1.002).all()  # the quadrature's error, not the decoder's
-    assert not energy.furnace(model, z).failing.any()
+    assert not furnace.furnace(model, z).failing.any()

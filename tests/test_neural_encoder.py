@@ -13,9 +13,9 @@ from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.neural_encoder import GGX_ALPHAS, Encoder, encode_material
 from richmat_addon.core.schema import bounds
 from richmat_addon.core.texel_vectors import read_vectors
-from torch_models.neural import data, fitting, material_vectors, weights
+from torch_models.neural import data, fitting, material_vectors, trained
 
-SHIPPED = weights.SHIPPED
+SHIPPED = trained.SHIPPED
 
 
 def random_vectors(n: int, seed: int = 0) -> np.ndarray:
@@ -26,7 +26,7 @@ def random_vectors(n: int, seed: int = 0) -> np.ndarray:
 
 
 def test_numpy_encoder_equals_torch_encoder_on_random_vectors() -> None:
-    model = weights.load(SHIPPED)
+    model = trained.load(SHIPPED)
     encoder = Encoder.load(SHIPPED)
     vectors = random_vectors(4096)
     with torch.no_grad():
@@ -37,7 +37,7 @@ def test_numpy_encoder_equals_torch_encoder_on_random_vectors() -> None:
 
 def test_floor_and_alphas_follow_the_torch_fit() -> None:
     assert set(GGX_ALPHAS) == set(data.GGX_ALPHAS)
-    model, encoder = weights.load(SHIPPED), Encoder.load(SHIPPED)
+    model, encoder = trained.load(SHIPPED), Encoder.load(SHIPPED)
     vectors = random_vectors(512, seed=1)
     np.testing.assert_array_equal(encoder.floored(vectors), fitting.fitting_pool(model, vectors).numpy())
 
@@ -56,8 +56,8 @@ def test_encoder_only_fit_writes_the_encoder_latents_deduplicated_as_torch_does(
     folder = neural_folder.read(tmp_path / "neural")
     assert record == folder.record and record["encoder_only"] is True and record["steps"] == 0
     assert record["fitted_vectors"] == len(ours.unique) < record["texels"] == 256
-    assert folder.decoder_sha256 == weights.digest(SHIPPED) and folder.energy_scale == 1.0
-    model = weights.load(SHIPPED)
+    assert folder.decoder_sha256 == trained.digest(SHIPPED) and folder.energy_scale == 1.0
+    model = trained.load(SHIPPED)
     with torch.no_grad():
         expected = theirs.texels(model.encoder(fitting.fitting_pool(model, theirs.unique)))
     latents = np.concatenate([read_exr(p) for p in folder.latent_paths], -1)

@@ -15,7 +15,7 @@ from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.texel_vectors import normalise, texel_matrix
 from torch_models.cli import main
-from torch_models.neural import energy, fit_error, fitting, loss, material_vectors, quadrature, weights
+from torch_models.neural import energy, fit_error, fitting, furnace, loss, material_vectors, quadrature, trained
 from tests.test_neural_training import TINY
 
 
@@ -77,12 +77,12 @@ def test_latents_that_gain_energy_are_refitted_under_the_bound() -> None:
     one while pulling them towards their materials and brings some below 1; whatever still fails
     is scaled, and a fresh furnace agrees. The MLP baseline's latents can gain energy; the shipped
     hybrid's cannot (test_hybrid_decoder), so this repair is the baseline's."""
-    from torch_models.neural import weights
+    from torch_models.neural import trained
     from torch_models.neural.data import parameter_vectors
 
-    model = weights.load(weights.BASELINE)
+    model = trained.load(trained.BASELINE)
     box = torch.rand(256, 6, generator=torch.Generator().manual_seed(0)) * 2.2 - 1.1
-    first = energy.furnace(model, box)
+    first = furnace.furnace(model, box)
     gaining = box[first.failing & (first.quadrature.max(1).values > 1.05)][:6]
     assert len(gaining) >= 3
     vectors = parameter_vectors(len(gaining), np.random.default_rng(0))
@@ -91,16 +91,16 @@ def test_latents_that_gain_energy_are_refitted_under_the_bound() -> None:
     assert bounded.refitted.all() and counts["passed_as_fitted"] == 0
     assert counts["passed_after_refit"] >= 1
     assert counts["passed_after_refit"] + counts["repaired_by_scaling"] == len(gaining)
-    before = energy.furnace(model, gaining).quadrature.max(1).values
+    before = furnace.furnace(model, gaining).quadrature.max(1).values
     assert (bounded.check.quadrature.max(1).values < before).all()
     scale = bounded.check.energy_scale()
-    assert not energy.furnace(model, bounded.z, n=2048, seed=5, energy_scale=scale).failing.any()
+    assert not furnace.furnace(model, bounded.z, n=2048, seed=5, energy_scale=scale).failing.any()
 
 
 def test_fit_is_bit_reproducible_with_threads(tiny_weights: Path) -> None:
     """A farm job and its restart must write the same latents: no thread-order-dependent sums."""
     from torch_models.neural.data import parameter_vectors
-    from torch_models.neural.weights import load
+    from torch_models.neural.trained import load
 
     model, threads = load(tiny_weights), torch.get_num_threads()
     vectors = parameter_vectors(256, np.random.default_rng(0))
@@ -111,26 +111,6 @@ def test_fit_is_bit_reproducible_with_threads(tiny_weights: Path) -> None:
         torch.set_num_threads(threads)
     assert len(runs) == 1
     assert not torch.are_deterministic_algorithms_enabled()  # the setting is restored after the fit
-
-
-def test_a_fit_penalty_joins_the_loss(tiny_weights: Path) -> None:
-    """``fit_latents(penalty=...)`` adds its term to the fitting loss: a strong pull towards a
-    point ends the fit near it, with the penalty called once per step."""
-    from torch_models.neural.data import parameter_vectors
-    from torch_models.neural.weights import load
-
-    model, vectors = load(tiny_weights), parameter_vectors(4, np.random.default_rng(1))
-    with torch.no_grad():  # within reach of 40 Adam steps of 0.01 from the encoder's start
-        target, calls = model.encoder(torch.from_numpy(vectors)) + 0.25, []
-
-    def pull(step: int, z: torch.Tensor) -> torch.Tensor:
-        calls.append(step)
-        return 100.0 * (z - target).pow(2).sum()
-
-    plain = fitting.fit_latents(model, vectors, 40)
-    pulled = fitting.fit_latents(model, vectors, 40, penalty=pull)
-    assert calls == list(range(40))
-    assert (pulled - target).abs().max() < 0.1 < (plain - target).abs().max()
 
 
 def test_constant_material_stays_one_vector(tiny_weights: Path, tmp_path: Path) -> None:
@@ -176,7 +156,7 @@ def test_bad_folder_and_missing_weights_are_clear(tmp_path: Path, textured: Path
 def test_furnace_repair_scales_only_what_fails() -> None:
     # Three latents at two view angles: the first gains energy at one angle, the
     # third at both (the tighter bound wins), the second never.
-    check = energy.Furnace(albedos=torch.tensor([[1.2, 0.8], [0.9, 0.95], [1.1, 1.05]]),
+    check = furnace.Furnace(albedos=torch.tensor([[1.2, 0.8], [0.9, 0.95], [1.1, 1.05]]),
                         std_errors=torch.full((3, 2), 0.01),
                         transmissions=torch.tensor([[0.5, 0.4], [0.3, 0.3], [0.6, 0.9]]),
                         quadrature=torch.tensor([[1.0, 0.8], [0.9, 0.95], [1.1, 1.04]]))
@@ -184,36 +164,36 @@ def test_furnace_repair_scales_only_what_fails() -> None:
     assert torch.allclose(check.albedo, torch.tensor([1.2, 0.95, 1.1]))
     exact = torch.tensor([0.5 / 0.73, 1.0, min(0.4 / 0.53, 0.1 / 0.18)])  # F at its 3-sigma bound
     scale = check.energy_scale()
-    assert ((exact - energy.SCALE_STEP < scale) & (scale <= exact)).all()  # rounded down to the grid
-    assert torch.equal(scale, torch.round(scale / energy.SCALE_STEP) * energy.SCALE_STEP)
-    noisy = energy.Furnace(check.albedos * (1 + 1e-6), check.std_errors, check.transmissions, check.quadrature)
+    assert ((exact - furnace.SCALE_STEP < scale) & (scale <= exact)).all()  # rounded down to the grid
+    assert torch.equal(scale, torch.round(scale / furnace.SCALE_STEP) * furnace.SCALE_STEP)
+    noisy = furnace.Furnace(check.albedos * (1 + 1e-6), check.std_errors, check.transmissions, check.quadrature)
     assert torch.equal(noisy.energy_scale(), scale)  # float noise does not reach the written map
     upper = check.albedos + 3 * check.std_errors - check.transmissions
     repaired = check.energy_scale()[:, None] * upper + check.transmissions
     assert (repaired <= 1.0 + 1e-6).all()
     # the quadrature alone can fail a latent that Monte Carlo passes (a lobe its samples missed)
-    narrow = energy.Furnace(albedos=torch.tensor([[0.5, 0.6]]), std_errors=torch.full((1, 2), 0.01),
+    narrow = furnace.Furnace(albedos=torch.tensor([[0.5, 0.6]]), std_errors=torch.full((1, 2), 0.01),
                          transmissions=torch.tensor([[0.2, 0.2]]), quadrature=torch.tensor([[2.6, 0.6]]))
     assert narrow.failing.tolist() == [True] and float(narrow.albedo[0]) == pytest.approx(2.6)
-    assert float(narrow.energy_scale()[0]) == pytest.approx(0.8 / 2.4, abs=energy.SCALE_STEP)
+    assert float(narrow.energy_scale()[0]) == pytest.approx(0.8 / 2.4, abs=furnace.SCALE_STEP)
     # without the margin, a lobe the quadrature puts 1 % over the bound loses that 1 %, not the
     # Monte Carlo error bar's 6 %; where Monte Carlo itself fails, its point estimate counts
-    at_bound = energy.Furnace(albedos=torch.tensor([[1.0], [1.2]]), std_errors=torch.full((2, 1), 0.02),
+    at_bound = furnace.Furnace(albedos=torch.tensor([[1.0], [1.2]]), std_errors=torch.full((2, 1), 0.02),
                            transmissions=torch.full((2, 1), 0.5), quadrature=torch.tensor([[1.01], [1.01]]))
     assert at_bound.energy_scale(margin=False).tolist() == pytest.approx([0.5 / 0.51, 0.5 / 0.7],
-                                                                         abs=energy.SCALE_STEP)
-    assert at_bound.energy_scale().tolist() == pytest.approx([0.5 / 0.56, 0.5 / 0.76], abs=energy.SCALE_STEP)
+                                                                         abs=furnace.SCALE_STEP)
+    assert at_bound.energy_scale().tolist() == pytest.approx([0.5 / 0.56, 0.5 / 0.76], abs=furnace.SCALE_STEP)
 
 
 def test_furnace_recheck_of_repaired_latents_passes(tiny_weights: Path) -> None:
-    from torch_models.neural.weights import load
+    from torch_models.neural.trained import load
 
     model = load(tiny_weights)
     model.decoder.net[-1].bias[:3] += 1.0  # f * cos up by e: some latents now gain energy, the repair has work
     z = torch.rand(64, 6, generator=torch.Generator().manual_seed(3)) * 2 - 1
-    first = energy.furnace(model, z, n=1024)
+    first = furnace.furnace(model, z, n=1024)
     assert first.failing.any()
-    again = energy.furnace(model, z, n=1024, seed=5, energy_scale=first.energy_scale())
+    again = furnace.furnace(model, z, n=1024, seed=5, energy_scale=first.energy_scale())
     assert again.albedos.shape == (64, len(quadrature.VIEW_COSINES))
     assert not again.failing.any()
 
@@ -223,7 +203,7 @@ def test_neural_bsdf_samples_follow_its_pdf(tiny_weights: Path) -> None:
 
     from tests.chi2 import chi2_test
     from torch_models.neural.bsdf import NeuralBsdf
-    from torch_models.neural.weights import load
+    from torch_models.neural.trained import load
 
     model = load(tiny_weights)
     torch.manual_seed(0)
@@ -248,16 +228,16 @@ def test_fitting_applies_the_decoders_angular_floor(tiny_weights: Path, tmp_path
     import shutil
 
     from richmat_addon.core.schema import CHANNEL_SLICES
-    from torch_models.neural import weights
+    from torch_models.neural import trained
     from torch_models.neural.data import angular_floor, parameter_vectors
 
-    model = weights.load(tiny_weights)
+    model = trained.load(tiny_weights)
     assert model.alpha_floor == 0.0
     run = Path(shutil.copytree(tiny_weights, tmp_path / "run"))
     state = json.loads((run / "state.json").read_text())
     state["config"].update(alpha_floor=0.02, relative_weight=1.0)
     (run / "state.json").write_text(json.dumps(state))
-    floored = weights.load(run)
+    floored = trained.load(run)
     assert (floored.alpha_floor, floored.relative_weight, model.relative_weight) == (0.02, 1.0, 0.0)
     mirror = parameter_vectors(4, np.random.default_rng(5))
     for name in ("alpha_core", "coat_alpha"):
@@ -273,7 +253,7 @@ def test_the_fit_error_is_higher_for_latents_of_other_materials() -> None:
     from support.agreement_cases import cases
 
     torch.manual_seed(0)
-    model = weights.load(weights.SHIPPED)
+    model = trained.load(trained.SHIPPED)
     vectors = np.stack([c.vector() for c in cases(1, 1, 0)])
     z = fitting.fit_latents(model, vectors, 100)
     ones = torch.ones(len(z))

@@ -7,7 +7,8 @@ import pytest
 import torch
 
 from richmat_addon.core.schema import bounds, default_vector
-from torch_models.neural.networks import LATENT, Decoder, Encoder, SamplingDecoder, direction_features
+from torch_models.neural.mlp.networks import Decoder, SamplingDecoder
+from torch_models.neural.networks import LATENT, Encoder, direction_features
 from tests.chi2 import chi2_test, sidak_threshold
 
 CASES = [(0, 0.9), (1, 0.4), (2, 0.08)]  # (network seed, cos theta_i)
@@ -29,10 +30,9 @@ def test_encoder_latents_stay_in_the_box() -> None:
     assert z.shape == (501, LATENT) and (z.abs() < 1).all()
 
 
-@pytest.mark.parametrize("encoding", ["half", "half_log_slope"])
-def test_decoder_outputs_are_finite_bounded_and_zero_below_the_horizon(encoding: str) -> None:
+def test_decoder_outputs_are_finite_bounded_and_zero_below_the_horizon() -> None:
     gen = torch.Generator().manual_seed(1)
-    dec = Decoder(encoding=encoding).double()
+    dec = Decoder(64, 4).double()
     z = 1.1 * (2 * torch.rand(1000, LATENT, generator=gen, dtype=torch.float64) - 1)  # box + 10 %
     wi, wo = _unit(1000, gen), _unit(1000, gen)
     wo[:500, 2] *= -1  # below the horizon
@@ -42,18 +42,16 @@ def test_decoder_outputs_are_finite_bounded_and_zero_below_the_horizon(encoding:
     assert ((t >= 0) & (t <= 1)).all() and ((r >= 0) & (r <= 1)).all()
 
 
-def test_log_slope_feature_is_the_half_vectors_log_tan_squared() -> None:
-    """For wo = wi the half vector is wi itself, so the extra feature is ln(tan^2 theta_i) / 8,
-    floored at the mirror direction (tan 0) where the logarithm has no value."""
+def test_direction_features_are_wi_wo_the_half_vector_and_wi_dot_h() -> None:
+    """For wo = wi the half vector is wi itself and wi.h is 1; for a mirror pair it is the normal."""
     theta = torch.tensor([0.0, 1e-3, 0.3, 1.2], dtype=torch.float64)
     wi = torch.stack([theta.sin(), torch.zeros_like(theta), theta.cos()], -1)
-    half, log_slope = direction_features(wi, wi, "half"), direction_features(wi, wi, "half_log_slope")
-    assert half.shape == (4, 10) and log_slope.shape == (4, 11)
-    assert torch.equal(log_slope[:, :10], half)
-    expected = torch.log(torch.tan(theta).square().clamp(min=1e-10)) / 8
-    assert torch.allclose(log_slope[:, 10], expected, atol=1e-6)
-    with pytest.raises(ValueError, match="encoding"):
-        Decoder(encoding="polar")
+    same = direction_features(wi, wi)
+    assert same.shape == (4, 10) and torch.equal(same[:, :3], wi) and torch.equal(same[:, 3:6], wi)
+    assert torch.allclose(same[:, 6:9], wi) and torch.allclose(same[:, 9], torch.ones(4, dtype=torch.float64))
+    mirror = wi * torch.tensor([-1.0, -1.0, 1.0], dtype=torch.float64)
+    h = direction_features(wi, mirror)[:, 6:9]
+    assert torch.allclose(h, torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64).expand(4, 3))
 
 
 @pytest.mark.parametrize("seed,mu", CASES)

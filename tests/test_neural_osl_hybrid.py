@@ -24,7 +24,7 @@ def closure_form(folder: Path):
     import dataclasses
 
     from torch_models.neural.closure_form import ClosureForm
-    from torch_models.neural.weights import load
+    from torch_models.neural.trained import load
 
     model = load(folder)
     return dataclasses.replace(model, decoder=ClosureForm(model.decoder))
@@ -133,11 +133,11 @@ def sheen_hybrid(folder: Path) -> Path:
     import torch
     from safetensors.torch import save_file
 
-    from torch_models.neural.hybrid import HybridDecoder
+    from torch_models.neural.hybrid_kind import KIND, HybridConfig
     from torch_models.neural.networks import Encoder
 
     torch.manual_seed(0)
-    dec = HybridDecoder(unit_lobes=True, sheen=True)
+    dec = KIND.build_decoder(HybridConfig(unit_lobes=True, sheen=True))
     k = dec.lobes
     with torch.no_grad():
         dec.head[-1].weight.mul_(0.1)

@@ -56,7 +56,7 @@ def test_training_reduces_the_loss_and_resumes(tmp_path: Path) -> None:
 def constant_decoder(width: int, depth: int, albedo: float):  # type: ignore[no-untyped-def]
     """A decoder whose f*cos is the constant albedo / (2 pi) (a hemisphere of it integrates
     to ``albedo``) and whose T is ~0, whatever the latent."""
-    from torch_models.neural.networks import Decoder
+    from torch_models.neural.mlp.networks import Decoder
 
     dec = Decoder(width, depth)
     with torch.no_grad():
@@ -67,7 +67,7 @@ def constant_decoder(width: int, depth: int, albedo: float):  # type: ignore[no-
 
 
 def test_energy_penalty_measures_albedo_above_one() -> None:
-    from torch_models.neural.loss import energy_penalty
+    from torch_models.neural.mlp.training import energy_penalty
 
     gen = torch.Generator().manual_seed(0)
     z = torch.zeros(8, 6)
@@ -77,10 +77,11 @@ def test_energy_penalty_measures_albedo_above_one() -> None:
 
 
 def test_energy_phase_removes_energy_gain(tmp_path: Path) -> None:
-    from torch_models.neural.train import TrainConfig, Trainer
-    from torch_models.neural.loss import energy_penalty
+    from torch_models.neural.mlp.config import MlpConfig
+    from torch_models.neural.train import Trainer
+    from torch_models.neural.mlp.training import energy_penalty
 
-    cfg = TrainConfig(**dict(TINY, width=16, depth=2, steps=0, energy_steps=80, energy_latents=64,
+    cfg = MlpConfig(**dict(TINY, width=16, depth=2, steps=0, energy_steps=80, energy_latents=64,
                              energy_samples=64, sampler_steps=0, checkpoint_every=100, lr_final=2e-3))
     trainer = Trainer(cfg, tmp_path / "run")
     trainer.decoder.load_state_dict(constant_decoder(16, 2, 1.6).state_dict())
@@ -125,63 +126,47 @@ def test_fine_tune_from_a_run_keeps_its_encoder(tmp_path: Path) -> None:
 
 
 def test_new_decoder_against_a_runs_frozen_encoder(tmp_path: Path) -> None:
-    """init_networks ["encoder"]: the latent space comes from the run, the decoder (here with
-    another direction encoding, so another input width) starts fresh and loads back as trained."""
-    from torch_models.neural.weights import load
+    """init_networks ["encoder"]: the latent space comes from the run, the decoder (here of
+    another width) starts fresh and loads back as trained."""
+    from torch_models.neural.trained import load
 
     base = tmp_path / "base.json"
     base.write_text(json.dumps(dict(TINY, steps=20, sampler_steps=0)))
     assert main(["train-decoder", "--config", str(base), "--out", str(tmp_path / "base")]) == 0
     new = tmp_path / "new.json"
     new.write_text(json.dumps(dict(TINY, steps=10, sampler_steps=0, init="base", init_networks=["encoder"],
-                                   freeze_encoder=True, encoding="half_log_slope")))
+                                   freeze_encoder=True, width=32)))
     assert main(["train-decoder", "--config", str(new), "--out", str(tmp_path / "new")]) == 0
     before, after = (load_file(str(tmp_path / run / "weights.safetensors")) for run in ("base", "new"))
     assert all(torch.equal(before[k], after[k]) for k in before if k.startswith("encoder."))
-    assert before["decoder.net.0.weight"].shape[1] == 16 and after["decoder.net.0.weight"].shape[1] == 17
-    assert load(tmp_path / "new").decoder.encoding == "half_log_slope"
-    assert load(tmp_path / "base").decoder.encoding == "half"
-
-
-def test_a_trainer_given_vectors_trains_on_those_alone(tmp_path: Path) -> None:
-    """The single-material capacity check: the pool is the given vectors, not a draw of the
-    enhancement rules, and one short run fits that material better than it started."""
-    from torch_models.neural.train import TrainConfig, Trainer
-
-    one = parameter_vectors(1, np.random.default_rng(7))
-    cfg = TrainConfig(**dict(TINY, width=16, depth=2, steps=60, sampler_steps=0, checkpoint_every=20))
-    trainer = Trainer(cfg, tmp_path / "run", vectors=np.repeat(one, 4, 0))
-    assert torch.equal(trainer.pool, torch.from_numpy(np.repeat(one, 4, 0)))
-    assert all(torch.equal(b.vectors, torch.from_numpy(one).expand(len(b.vectors), -1)) for b in trainer.buffer)
-    trainer.run()
-    losses = [h["loss"] for h in cfg.history]
-    assert losses[-1] < 0.7 * losses[0]
+    assert before["decoder.net.0.weight"].shape[0] == 64 and after["decoder.net.0.weight"].shape[0] == 32
+    assert load(tmp_path / "new").decoder.width == 32 and load(tmp_path / "base").decoder.width == 64
 
 
 def test_every_committed_config_loads_and_starts_inside_the_repository() -> None:
-    """A misspelt key or encoding in a committed config fails here, not an hour into a run;
+    """A misspelt key in a committed config fails here, not an hour into a run;
     a fine-tune's ``init`` names a run folder inside the checkout, never outside it."""
     from torch_models.cli_train_decoder import CONFIGS
-    from torch_models.neural.networks import DIRECTION_ENCODINGS
-    from torch_models.neural.train import TrainConfig
+    from torch_models.neural.kinds import load_config
 
     repo = CONFIGS.parents[2]
     paths = sorted(CONFIGS.glob("*.json"))
     assert len(paths) >= 4
     for path in paths:
-        cfg = TrainConfig.load(path)
-        assert cfg.encoding in DIRECTION_ENCODINGS and cfg.steps > 0, path.name
+        cfg = load_config(path)
+        assert cfg.steps > 0, path.name
         if cfg.init:
             assert Path(cfg.init).is_relative_to(repo), (path.name, cfg.init)
 
 
 def test_angular_floor_raises_the_ggx_alphas_alone_and_the_trainer_draws_floored() -> None:
     """Only the four GGX alphas move, and only those below the floor; a trainer with a floor
-    trains on floored vectors (targets and encoder inputs alike)."""
+    trains on floored vectors (targets and encoder inputs alike) of the pool its seed draws."""
     from torch_models.neural.data import GGX_ALPHAS, angular_floor
-    from torch_models.neural.train import TrainConfig, Trainer
+    from torch_models.neural.mlp.config import MlpConfig
+    from torch_models.neural.train import Trainer
 
-    v = parameter_vectors(300, np.random.default_rng(3))
+    v = parameter_vectors(TINY["pool"], np.random.default_rng(TINY["seed"]))
     floored = angular_floor(v, 0.01).numpy()
     alphas = np.concatenate([np.arange(22)[CHANNEL_SLICES[n]] for n in GGX_ALPHAS])
     others = np.setdiff1d(np.arange(22), alphas)
@@ -190,8 +175,9 @@ def test_angular_floor_raises_the_ggx_alphas_alone_and_the_trainer_draws_floored
     above = v[:, alphas] >= 0.01
     assert np.array_equal(floored[:, alphas][above], v[:, alphas][above])
     assert np.array_equal(angular_floor(v, 0.0).numpy(), v)
-    trainer = Trainer(TrainConfig(**dict(TINY, alpha_floor=0.01)), Path("unused"), vectors=v)
+    trainer = Trainer(MlpConfig(**dict(TINY, alpha_floor=0.01)), Path("unused"))
     assert torch.equal(trainer.pool, torch.from_numpy(floored))
+    assert all((b.vectors[:, alphas] >= 0.01).all() for b in trainer.buffer)
 
 
 def test_relative_term_sees_a_broad_lobe_half_wrong() -> None:
@@ -219,15 +205,16 @@ def test_relative_term_sees_a_broad_lobe_half_wrong() -> None:
 def test_a_batch_with_a_non_finite_gradient_is_skipped_not_applied(tmp_path: Path) -> None:
     """One NaN gradient would turn every weight NaN (a hybrid from scratch hit one at step 4595):
     the step is skipped, counted, and the weights stay as they were."""
-    from torch_models.neural.train import TrainConfig, Trainer
+    from torch_models.neural.mlp.config import MlpConfig
+    from torch_models.neural.train import Trainer
 
-    cfg = TrainConfig(**dict(TINY, width=16, depth=2, steps=3, sampler_steps=0))
+    cfg = MlpConfig(**dict(TINY, width=16, depth=2, steps=3, sampler_steps=0))
     trainer = Trainer(cfg, tmp_path / "run")
     before = [p.detach().clone() for p in trainer.decoder.parameters()]
     objective = trainer.objective.forward
     trainer.objective.forward = lambda *a, **k: objective(*a, **k) * torch.tensor(float("nan"))
-    assert math.isnan(trainer._decoder_step()) and trainer.skipped == 1
+    assert math.isnan(trainer.decoder_step()) and trainer.skipped == 1
     assert all(torch.equal(b, p) for b, p in zip(before, trainer.decoder.parameters()))
     trainer.objective.forward = objective
-    assert math.isfinite(trainer._decoder_step())
+    assert math.isfinite(trainer.decoder_step())
     assert not all(torch.equal(b, p) for b, p in zip(before, trainer.decoder.parameters()))

@@ -10,19 +10,20 @@ import torch
 
 from tests.test_neural_fit import tiny_weights  # noqa: F401  (fixture)
 from tests.test_neural_training import constant_decoder
-from torch_models.neural import energy, quadrature, validity
-from torch_models.neural.weights import NeuralModel, load
+from torch_models.neural import energy, furnace, quadrature, validity
+from torch_models.neural.model import NeuralModel
+from torch_models.neural.trained import load
 
 
 def _constant_model(tiny: NeuralModel, albedo: float) -> NeuralModel:
     """The tiny model with a decoder whose f_neu albedo is ``albedo`` at every latent and angle."""
     return NeuralModel(tiny.encoder, constant_decoder(tiny.decoder.width, tiny.decoder.depth, albedo),
-                       tiny.sampler, "constant")
+                       tiny.sampler, "constant", tiny.alpha_floor, tiny.relative_weight, tiny.t_weight)
 
 
 def test_furnace_estimates_a_known_albedo(tiny_weights: Path) -> None:  # noqa: F811
     model = _constant_model(load(tiny_weights), 0.8)
-    check = energy.furnace(model, torch.rand(4, 6) * 2 - 1, n=4096)
+    check = furnace.furnace(model, torch.rand(4, 6) * 2 - 1, n=4096)
     err = (check.albedos - 0.8).abs()
     assert (err < 4 * check.std_errors + 1e-3).all(), check.albedos
     # this f cos jumps to 0 at the horizon, which cuts through quadrature cells: 2.5 % (real f cos fades to 0 there)
@@ -34,13 +35,13 @@ def test_furnace_estimates_a_known_albedo(tiny_weights: Path) -> None:  # noqa: 
 def test_furnace_flags_and_repairs_energy_gain(tiny_weights: Path) -> None:  # noqa: F811
     model = _constant_model(load(tiny_weights), 1.5)
     z = torch.rand(6, 6) * 2 - 1
-    check = energy.furnace(model, z, n=2048)
+    check = furnace.furnace(model, z, n=2048)
     assert check.failing.all()
     scale = check.energy_scale()
     assert ((scale > 0.6) & (scale <= 1 / 1.5)).all()  # just enough to bring 1.5 to 1
-    assert not energy.furnace(model, z, n=2048, seed=9, energy_scale=scale).failing.any()
+    assert not furnace.furnace(model, z, n=2048, seed=9, energy_scale=scale).failing.any()
     guarded = energy.guard(model, z)
-    assert (guarded <= 1 / 1.5).all() and not energy.furnace(model, z, n=2048, seed=11, energy_scale=guarded).failing.any()
+    assert (guarded <= 1 / 1.5).all() and not furnace.furnace(model, z, n=2048, seed=11, energy_scale=guarded).failing.any()
     # repaired to the point estimate and checked again: no darker than one repair with the error bar
     assert (guarded >= scale).all() and float(guarded.min()) > 1 / 1.5 - 0.02, guarded
 

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from richmat_addon.core.texel_vectors import TexelVectors
 
-    from .neural.weights import NeuralModel
+    from .neural.model import NeuralModel
 
 HELP = "uplift the built-in material to Types 0-5, fit them as neural materials, generate from prompts"
 DEFAULT_PROBE = Path(__file__).resolve().parent / "data" / "studio_small_03_512.hdr"
@@ -80,12 +80,12 @@ def run(args: argparse.Namespace) -> int:
     from .cli import InputError
     from .demo_render import analytic_at, captioned_row, render_balls, save_sheet, to_u8
 
-    from .neural import weights
+    from .neural import trained
 
     apply_sizes(args)
     if args.generate_size < 8:
         raise InputError("--generate-size must be >= 8")
-    model = weights.load()
+    model = trained.load()
     progress = Progress(expected_seconds(args, bounded=model.decoder.bounded))
     progress.start("enhance")
     pbr = chipped_paint(args.size)
@@ -104,14 +104,14 @@ def run(args: argparse.Namespace) -> int:
     png = save_sheet([captioned_row([to_u8(b) for b in balls], labels)], args.out / "side_by_side.png")
     progress.write(f"wrote {args.out}/type_0..5 and {png}")
     if not args.no_neural:
-        fit_and_compare(args, model, materials, balls[1:], progress)
+        fit_types_and_compare(args, model, materials, balls[1:], progress)
     if not args.no_generate:
         generate_from_prompts(args.out, args.seed, args.generate_size, args.view_size, progress)
     progress.close()
     return 0
 
 
-def fit_and_compare(args: argparse.Namespace, model: NeuralModel, materials: list,  # type: ignore[type-arg]
+def fit_types_and_compare(args: argparse.Namespace, model: NeuralModel, materials: list,  # type: ignore[type-arg]
                     analytic: list, progress: Progress) -> None:  # type: ignore[type-arg]
     """Fit the six types as neural materials with the shipped decoder, write their latents, compare
     each with its analytic ball (``analytic``: the renders of side_by_side.png, same settings).
@@ -193,7 +193,7 @@ def merge_vectors(mv: TexelVectors, step: float) -> TexelVectors:
 
 def _select(bounded, rows):  # type: ignore[no-untyped-def]
     """The latents ``rows`` of a BoundedFit, with their furnace check."""
-    from .neural.energy import BoundedFit, Furnace
+    from .neural.furnace import BoundedFit, Furnace
 
     check = bounded.check
     return BoundedFit(bounded.z[rows], Furnace(check.albedos[rows], check.std_errors[rows], check.transmissions[rows],
@@ -302,7 +302,7 @@ def expected_seconds(args: argparse.Namespace, vectors: int = 1000, bounded: boo
     """Each stage's expected cost at the run's sizes: the progress line's weights. A decoder
     bounded by construction needs no furnace or guard; otherwise the energy stage grows with
     the ``vectors`` fitted, guessed until the types are made."""
-    from .neural.energy import REFIT_LATENTS
+    from .neural.mlp.energy import REFIT_LATENTS
 
     ball = args.resolution ** 2 * args.spp
     stages = {"enhance": 6 * args.size ** 2 * ENHANCE_SECONDS_PER_TEXEL,

@@ -47,7 +47,8 @@ def run(args: argparse.Namespace) -> int:
     from richmat_addon.core.stage_clock import StageClock
 
     from .cli import InputError, atomic_path, emit, emit_done
-    from .neural import energy, fit_error, fitting, material_vectors, weights
+    from .neural import energy, fit_error, fitting, material_vectors, trained
+    from .neural.mlp.energy import REFIT_STEPS
 
     jsonl = args.progress == "jsonl"
     clock = StageClock()
@@ -55,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
         with clock.stage("read"):
             step = material_vectors.QUANT if args.cluster_step is None else args.cluster_step
             mv = material_vectors.read_vectors(args.material, step)
-            model = weights.load(args.weights or weights.SHIPPED)
+            model = trained.load(args.weights or trained.SHIPPED)
     except (ValueError, FileNotFoundError, KeyError) as exc:
         if jsonl:
             emit("error", message=str(exc))
@@ -89,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
             return 130
     # The energy refit gets no more steps than the fit had: a quick fit stays quick, and what the
     # short refit leaves over the bound is scaled, as the furnace check counts.
-    refit_steps = min(energy.REFIT_STEPS, args.steps)
+    refit_steps = min(REFIT_STEPS, args.steps)
     with clock.stage("energy"):
         bounded = energy.fit_bounded(model, mv.unique, z, seed=args.seed, steps=refit_steps)
     with clock.stage("error"):

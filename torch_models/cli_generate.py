@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     from .cli import InputError, emit, emit_done
     from .generator import generate as gen
     from .generator.mesh_input import load_mesh, use_baked_material
-    from .neural import weights
+    from .neural import trained
 
     jsonl = args.progress == "jsonl"
     try:
@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         inp = load_mesh(args.mesh)
         if args.material is not None:
             use_baked_material(inp, args.material)
-        decoder = weights.load()
+        decoder = trained.load()
     except (InputError, FileNotFoundError, ValueError, KeyError) as exc:
         if jsonl:
             emit("error", message=str(exc))
@@ -100,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
 
     result = gen.generate(inp, args.prompt, model, cfg, args.seed, args.steps, args.views, args.guidance,
                           args.texture_size, progress if jsonl else None, not args.no_energy_guard, args.samples)
-    mismatch = gen.encoder_mismatch(args.checkpoint or gen.SHIPPED, weights.encoder_digest())
+    mismatch = gen.encoder_mismatch(args.checkpoint or gen.SHIPPED, trained.encoder_digest())
     if mismatch:
         result.warnings.append(mismatch)
     args.out.mkdir(parents=True, exist_ok=True)

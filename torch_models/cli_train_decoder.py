@@ -1,4 +1,4 @@
-"""Train the universal neural-material encoder, decoder and sampling decoder.
+"""Train the universal neural-material encoder and a decoder of the kind the config names.
 
 Data are generated on the fly from the enhancement rules (torch_models/neural/data.py).
 Writes OUT/weights.safetensors, OUT/state.json and OUT/training_curve.png at every
@@ -15,8 +15,9 @@ CONFIGS = Path(__file__).resolve().parent / "neural" / "configs"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", type=Path, default=CONFIGS / "decoder_cpu.json",
-                        help="training configuration JSON (default: neural/configs/decoder_cpu.json)")
+    parser.add_argument("--config", type=Path, default=CONFIGS / "decoder_hybrid_sheen.json",
+                        help="training configuration JSON (default: neural/configs/decoder_hybrid_sheen.json, "
+                             "the shipped decoder's)")
     parser.add_argument("--out", type=Path, default=Path("decoder_run"), help="run folder (default: decoder_run)")
     parser.add_argument("--resume", action="store_true", help="continue from the run folder's last checkpoint")
 
@@ -24,12 +25,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from .cli import InputError
     from .distributed import finish
-    from .neural.train import TrainConfig, Trainer
+    from .neural.kinds import load_config
+    from .neural.train import Trainer
 
     if not args.config.is_file():
         raise InputError(f"{args.config}: no such configuration file")
     try:
-        cfg = TrainConfig.load(args.config)
+        cfg = load_config(args.config)
     except (TypeError, ValueError) as exc:
         raise InputError(f"{args.config}: not a training configuration ({exc})") from None
     trainer = Trainer(cfg, args.out)

@@ -13,7 +13,7 @@ from richmat_addon.core.preview import PreviewScene
 
 from .brdf.model import LayeredBsdf
 from .neural.bsdf import NeuralBsdf
-from .neural.weights import NeuralModel
+from .neural.model import NeuralModel
 from .render.ball import BsdfAt
 
 CAPTION_FONT_SIZE = 14  # px: readable on a 160 px panel, where a Type's name wraps to two lines

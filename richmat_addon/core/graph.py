@@ -122,9 +122,6 @@ SURFACE: Node = Layer(
     ),
 )
 
-LOBE_ORDER: tuple[str, ...] = ("dust", "coat", "cond_core", "cond_haze",
-                               "diel_core", "diel_haze", "inner", "subsurf")
-
 
 def iter_lobes(node: Node) -> Iterator[Lobe]:
     """All lobes of a graph, top to bottom."""

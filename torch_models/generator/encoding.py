@@ -23,11 +23,11 @@ def pack_vectors(material: EnhancedMaterial, shape: tuple[int, int]) -> np.ndarr
 
 def latent_texture(material: EnhancedMaterial, shape: tuple[int, int], fit_steps: int = 0) -> np.ndarray:
     """(H, W, 6) latents: the shipped encoder per distinct texel vector, optionally refined by the fit."""
-    from ..neural import fitting, weights
+    from ..neural import fitting, trained
 
     vectors = pack_vectors(material, shape)
     unique, inverse = np.unique(vectors, axis=0, return_inverse=True)
-    model = weights.load()
+    model = trained.load()
     if fit_steps:
         z = fitting.fit_latents(model, unique, fit_steps, batch=4096)
     else:

@@ -29,7 +29,7 @@ from .views import (ELEVATION_DEG, Cameras, IntrinsicViews, Mesh, Textures, dire
                     render_intrinsics)
 
 if TYPE_CHECKING:
-    from ..neural.weights import NeuralModel
+    from ..neural.model import NeuralModel
 
 SHIPPED = Path(__file__).resolve().parent / "weights"
 SEEN_WARNING = 0.5  # below this share of directly seen texels the result is mostly inpainted: say so
@@ -66,13 +66,13 @@ def encoder_mismatch(folder: Path, encoder_digest: str) -> str | None:
 def diffuse_fallback_latent() -> Tensor:
     """(6,) the shipped encoder's latent of a plain rough dielectric: what unseen UV islands get."""
     from richmat_addon.core.enhance import baseline
-    from ..neural import weights
+    from ..neural import trained
     from .encoding import pack_vectors
 
     plain = baseline(PbrInputs("fallback", ParamMap.constant(0.8, 0.8, 0.8), ParamMap.constant(1.0),
                                ParamMap.constant(0.0)))
     with torch.no_grad():
-        return weights.load().encoder(torch.from_numpy(pack_vectors(plain, (1, 1))))[0]
+        return trained.load().encoder(torch.from_numpy(pack_vectors(plain, (1, 1))))[0]
 
 
 @dataclass
@@ -250,10 +250,10 @@ def energy_guard(latents: np.ndarray, model: NeuralModel | None = None) -> np.nd
     bounded by construction (the MLP kind): ``energy.guard`` measures each distinct latent and
     darkens the ones that do, as ``fit`` repairs a fitted material. A bounded decoder (the shipped
     hybrid) needs no measurement: every scale is 1. ``model`` defaults to the shipped decoder."""
-    from ..neural import energy, weights
+    from ..neural import energy, trained
 
     unique, inverse = np.unique(latents.reshape(-1, latents.shape[-1]), axis=0, return_inverse=True)
-    scale = energy.guard(model or weights.load(), torch.from_numpy(unique))
+    scale = energy.guard(model or trained.load(), torch.from_numpy(unique))
     return scale.numpy()[inverse.reshape(-1)].reshape(latents.shape[:2])
 
 
@@ -272,13 +272,13 @@ def preview(inp: MeshInput, latents: Textures, frames: int = 4, resolution: int 
     scaled by its (H, W) ``energy_scale`` map when given) over its base colour, lit by the default probe.
 
     G-buffer shading (no shadows, no interreflection), the same as the neural material's ball preview."""
-    from ..neural import weights
+    from ..neural import trained
     from ..neural.bsdf import NeuralBsdf
     from ..neural.evaluate import DEFAULT_PROBE
     from ..render.ball import shade_gbuffer
     from ..render.envmap import EnvMap
 
-    model = weights.load()
+    model = trained.load()
     env = EnvMap.load(DEFAULT_PROBE)
     cams = preview_cameras(inp.mesh, frames, resolution)
     textures = per_material(latents)

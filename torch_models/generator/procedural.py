@@ -156,28 +156,3 @@ def make_asset(index: int, texture_size: int = 64, seed: int = 0) -> ProceduralA
                     ParamMap(metal.reshape(*hw, 1)))
     return ProceduralAsset(f"proc-{seed}-{index:05d}", shape, family, mesh, pbr, raster.normals, raster.positions)
 
-
-def export_glb(asset: ProceduralAsset, path) -> None:  # path: str | Path
-    """The asset as a glTF binary with a metal-rough PBR material, as input for ``batch/``.
-
-    Textures are 8-bit PNGs (base colour sRGB; roughness in G and metalness in B
-    of the linear metallicRoughness texture), as real assets store them. trimesh
-    keeps UVs with v up and flips them on export, so glTF UVs come out unchanged.
-    """
-    import trimesh
-    from PIL import Image
-
-    def u8(x: np.ndarray) -> Image.Image:
-        return Image.fromarray((np.clip(x, 0, 1) * 255 + 0.5).astype(np.uint8))
-
-    base = asset.pbr.base_color.value ** (1 / 2.2)
-    rough, metal = asset.pbr.roughness.value[..., 0], asset.pbr.metalness.value[..., 0]
-    mr = np.stack([np.zeros_like(rough), rough, metal], -1)
-    material = trimesh.visual.material.PBRMaterial(name=asset.family, baseColorTexture=u8(base),
-                                                   metallicRoughnessTexture=u8(mr), metallicFactor=1.0,
-                                                   roughnessFactor=1.0)
-    uv = asset.mesh.uvs.copy()
-    uv[:, 1] = 1.0 - uv[:, 1]
-    mesh = trimesh.Trimesh(asset.mesh.positions, asset.mesh.faces, vertex_normals=asset.mesh.normals,
-                           visual=trimesh.visual.TextureVisuals(uv=uv, material=material), process=False)
-    mesh.export(str(path), file_type="glb")

@@ -18,7 +18,7 @@ from safetensors.torch import load_file, save_file
 from torch import Tensor
 
 from ..distributed import data_parallel, placement
-from ..neural import weights
+from ..neural import trained
 from . import corpus
 from .dit import Conditions, DitConfig, LatentGenerator
 
@@ -119,7 +119,7 @@ class GeneratorTrainer:
         self.step = 0
         self.history: list[dict] = []
         self.train_objects = len(train)
-        self.encoder_digest = weights.encoder_digest()  # the corpus latents are the shipped encoder's
+        self.encoder_digest = trained.encoder_digest()  # the corpus latents are the shipped encoder's
 
     # ---- checkpoints ---------------------------------------------------------------
     def save(self) -> None:

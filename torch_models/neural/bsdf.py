@@ -16,7 +16,7 @@ from torch import Tensor
 
 from ..brdf.model import luminance
 from .glints import Glints
-from .weights import NeuralModel
+from .model import NeuralModel
 
 
 class NeuralBsdf:

@@ -24,9 +24,10 @@ from ..render.flip import flip_map
 from ..render.tonemap import agx
 from .bsdf import NeuralBsdf
 from .quadrature import VIEW_COSINES, half_vector_nodes
-from .energy import BoundedFit, fit_bounded
+from .energy import fit_bounded
+from .furnace import BoundedFit
 from .fitting import fit_latents
-from .weights import NeuralModel
+from .model import NeuralModel
 
 DEFAULT_PROBE = Path(__file__).resolve().parents[1] / "data" / "studio_small_03_512.hdr"
 

@@ -19,7 +19,7 @@ import torch
 
 from .data import make_batch
 from .fitting import fitting_pool
-from .weights import NeuralModel
+from .model import NeuralModel
 
 SAMPLE_BUDGET = 1 << 18  # direction samples per material: about a fifth of what a 300-step fit draws
 MIN_SAMPLES, MAX_SAMPLES = 8, 256  # per vector: the budget is shared, within these bounds

@@ -6,7 +6,7 @@ vectors a material folder needs, ``energy`` checks what the fit wrote.
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import replace
 
@@ -16,7 +16,7 @@ from torch import Tensor
 
 from .data import Batch, angular_floor, make_batch
 from .loss import decoder_loss
-from .weights import NeuralModel
+from .model import NeuralModel
 
 FIT_BATCH = 16384  # (texel, wi, wo) samples per Adam step at least, shared by the vectors fitted together
 SAMPLES_PER_VECTOR = 4  # per Adam step and vector at least: a vector's samples do not shrink as textures grow
@@ -58,7 +58,6 @@ def target_buffer(pool: Tensor, batch: int, per_vector: int, steps: int, gen: to
 
 def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int = FIT_BATCH, seed: int = 0,
                 start: Tensor | None = None, progress=None,  # type: ignore[no-untyped-def]
-                penalty: Callable[[int, Tensor], Tensor] | None = None,
                 per_vector: int = SAMPLES_PER_VECTOR) -> Tensor:
     """Latents (K, 6) of K parameter vectors, from the encoder (or ``start``), optimised ``steps`` times.
 
@@ -67,8 +66,6 @@ def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int 
     targets cost far more than a decoder step, so ``FIT_BUFFER`` batches are drawn once
     and cycled through (fewer when there are fewer steps). Adam is per coordinate, so
     stepping the chunks' summed gradients fits each chunk as if it were fitted alone.
-    ``penalty(step, z)`` is added to the loss: a way to try other objectives
-    (bench/fit_limits.py) without a second optimisation loop.
     """
     pool = fitting_pool(model, vectors)
     with torch.no_grad():
@@ -87,10 +84,6 @@ def fit_latents(model: NeuralModel, vectors: np.ndarray, steps: int, batch: int 
                 loss.backward()
                 total, samples = total + loss.item() * len(b.index), samples + len(b.index)
             total /= samples
-            if penalty is not None:
-                extra = penalty(step, z)
-                extra.backward()
-                total += extra.item()
             opt.step()
             if progress is not None:
                 progress(step, total, z.detach())

@@ -1,6 +1,6 @@
 """The hybrid decoder: analytic GGX lobes from the latent, a small network that gates them.
 
-The direct MLP (``networks.Decoder``) must draw every lobe, peaks included, from
+The direct MLP (``mlp.networks.Decoder``) must draw every lobe, peaks included, from
 (latent, directions); shared across materials it draws near-mirror metals and half
 metals badly and half its latents gain energy. Here the peaks are closed-form:
 
@@ -46,8 +46,8 @@ from ..brdf.model import luminance
 from .networks import LATENT, direction_features, mlp
 
 LOG_ALPHA_MIN = math.log(1e-4)  # the lobe head's alphas span (1e-4, 1) before the floor
-INITIAL_ALPHAS = (0.02, 0.12, 0.45)
-E_MIN = 0.3  # Cycles' single-scatter GGX albedo table stays above this everywhere  # lobe k starts near the k-th: a mirror-like, a glossy and a rough lobe
+INITIAL_ALPHAS = (0.02, 0.12, 0.45)  # lobe k starts near the k-th: a mirror-like, a glossy and a rough lobe
+E_MIN = 0.3  # Cycles' single-scatter GGX albedo table stays above this everywhere
 
 
 def upper_table() -> Tensor:
@@ -91,7 +91,7 @@ class Lobes:
 
 
 def softmax(x: Tensor) -> Tensor:
-    """Softmax over the last axis; torch's CPU kernel takes 17x longer on a few columns of a wide slice."""
+    """Softmax over the last axis; torch's CPU kernel is far slower on a few columns of a wide slice."""
     e = (x - x.amax(-1, keepdim=True)).exp()
     return e / e.sum(-1, keepdim=True)
 
@@ -102,8 +102,9 @@ class HybridDecoder(nn.Module):
 
     kind = "hybrid"
 
-    def __init__(self, lobes: int = 3, width: int = 32, gate_width: int = 32, gate_depth: int = 2,
-                 alpha_floor: float = 1e-3, unit_lobes: bool = False, sheen: bool = False) -> None:
+    def __init__(self, lobes: int, width: int, gate_width: int, gate_depth: int, alpha_floor: float,
+                 unit_lobes: bool, sheen: bool) -> None:
+        """Sizes and options from the run's config (``hybrid_kind.HybridConfig``)."""
         super().__init__()
         self.lobes, self.width, self.gate_width, self.gate_depth = lobes, width, gate_width, gate_depth
         self.unit_lobes, self.sheen = unit_lobes, sheen
@@ -128,7 +129,8 @@ class HybridDecoder(nn.Module):
     def bounded(self) -> bool:
         """albedo(f_neu) + T <= 1 for every latent, so fitting needs no furnace. A unit lobe's albedo
         is E / table: <= 1 where the table (its bilinear read) is at least E everywhere, as the upper
-        table is; decoders saved with Cycles' own table (up to 0.86 % short) go through the furnace."""
+        table is; decoders saved with Cycles' own table (which reads short between nodes) are not,
+        and their fits are refused (``hybrid_kind``)."""
         return not self.unit_lobes or bool((self.ggx_e >= tables.table("ggx_E_upper", self.ggx_e.device,
                                                                         self.ggx_e.dtype)).all())
 
@@ -197,7 +199,7 @@ class LobeSampler:
     """Exact importance sampling of a hybrid decoder's own lobes (gates left out): the
     component is chosen by weight times an albedo estimate, a GGX lobe by its visible
     normals, the diffuse lobe by cosine, the sheen by its LTC. Same interface as
-    ``networks.SamplingDecoder``."""
+    the MLP's ``SamplingDecoder``."""
 
     def __init__(self, decoder: HybridDecoder) -> None:
         self.decoder = decoder

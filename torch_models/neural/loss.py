@@ -1,12 +1,11 @@
-"""The losses the decoder is trained (and latents fitted) with, and the sampler's.
+"""The losses every decoder kind is trained (and its latents fitted) with.
 
 ``decoder_loss`` compares log(1 + f cos) per channel with the analytic target
 (f spans ten decades), plus a chroma term: while the grey error exceeds the
 colour difference, per-channel L1 gives all three channels the same sign of
 gradient, and a decoder trained with L1 alone decoded every metal grey.
 ``albedo_loss`` ties the integral of f_neu to the analytic albedo, which the
-per-pair loss does not; ``energy_penalty`` is the MLP's phase-2 penalty on
-latents that gain energy; ``sampler_loss`` trains the MLP's sampling decoder.
+per-pair loss does not.
 """
 from __future__ import annotations
 
@@ -17,16 +16,15 @@ import torch
 from torch import Tensor
 
 from ..brdf.model import LayeredBsdf, luminance, params_from_vectors
-from .data import Batch, cosine_hemisphere, view_directions
-from .decoders import AnyDecoder
-from .networks import MAX_LOG_F, SamplingDecoder, f_cos
+from .data import Batch, view_directions
+from .networks import MAX_LOG_F, DecoderNet, f_cos
 
 LOSS_WEIGHTS = (0.95, 0.04, 0.01)  # f, T, R (paper sec. 4)
 RELATIVE_EPS = 0.005  # f cos below this counts as zero in decoder_loss's relative term
 CHROMA_WEIGHT = 10.0
 
 
-def decoder_loss(dec: AnyDecoder, z: Tensor, batch: Batch, chroma_weight: float = CHROMA_WEIGHT,
+def decoder_loss(dec: DecoderNet, z: Tensor, batch: Batch, chroma_weight: float = CHROMA_WEIGHT,
                  relative_weight: float = 0.0, t_weight: float = LOSS_WEIGHTS[1]) -> Tensor:
     """The training (and fitting) loss of latents z against a batch of analytic targets.
 
@@ -46,32 +44,7 @@ def decoder_loss(dec: AnyDecoder, z: Tensor, batch: Batch, chroma_weight: float 
     return wf * f_loss + t_weight * (t - batch.t).abs().mean() + wr * (r - batch.r).abs().mean()
 
 
-def sampler_loss(sampler: SamplingDecoder, dec: AnyDecoder, z: Tensor, wi: Tensor, u: Tensor) -> Tensor:
-    """-E[target / pdf * log pdf] with wo from the (detached) sampler: the forward KL's gradient."""
-    with torch.no_grad():
-        wo = sampler.sample(z, wi, u)
-        target = luminance(dec(z, wi, wo)[0]).squeeze(-1)
-    pdf = sampler.pdf(z, wi, wo)
-    ok = (wo[:, 2] > 0) & (pdf > 0)
-    weight = torch.where(ok, target / pdf.detach().clamp(min=1e-4), torch.zeros_like(target))
-    return -(weight * pdf.clamp(min=1e-4).log()).mean()
-
-
-def energy_penalty(dec: AnyDecoder, z: Tensor, n: int, gen: torch.Generator) -> Tensor:
-    """Mean white-furnace gain, sum over channels of max(0, albedo - 1), of latents z (M, 6).
-
-    Each latent gets one view direction (cos theta in [0.05, 1]) and n cosine-sampled
-    wo; the albedo of f_neu + T * white Lambertian is estimated per channel.
-    """
-    m = len(z)
-    wi = view_directions(0.05 + 0.95 * torch.rand(m, 1, generator=gen)).repeat_interleave(n, 0)
-    wi, wo = wi.to(z.device), cosine_hemisphere(m * n, gen).to(z.device)
-    f, t, _ = dec(z.repeat_interleave(n, 0), wi, wo)
-    albedo = (f * (math.pi / wo[:, 2:3]) + t).reshape(m, n, 3).mean(1)
-    return torch.relu(albedo - 1.0).sum(-1).mean()
-
-
-def albedo_loss(dec: AnyDecoder, z: Tensor, vectors: Tensor, n: int, gen: torch.Generator) -> Tensor:
+def albedo_loss(dec: DecoderNet, z: Tensor, vectors: Tensor, n: int, gen: torch.Generator) -> Tensor:
     """Squared relative error of the directional albedo (luminance) of f_neu at latents z (K, 6)
     against the analytic R(wi) of their parameter vectors (K, 22), one random view angle each.
 

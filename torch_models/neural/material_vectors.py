@@ -12,7 +12,7 @@ from richmat_addon.core import neural_folder
 from richmat_addon.core.texel_vectors import QUANT, TexelVectors, read_vectors
 
 if TYPE_CHECKING:
-    from .energy import BoundedFit
+    from .furnace import BoundedFit
 
 MaterialVectors = TexelVectors
 __all__ = ["QUANT", "MaterialVectors", "read_vectors", "write_fit"]

@@ -13,7 +13,7 @@ import torch
 from torch import Tensor
 
 from .data import view_directions
-from .weights import NeuralModel
+from .model import NeuralModel
 
 VIEW_COSINES = (1.0, 0.7, 0.4, 0.15, 0.05)
 QUADRATURE_THETA = 64  # half-vector polar rings

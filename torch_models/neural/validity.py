@@ -20,8 +20,8 @@ import torch
 from torch import Tensor
 
 from .data import parameter_vectors
-from .energy import Furnace, furnace
-from .weights import NeuralModel
+from .furnace import Furnace, furnace
+from .model import NeuralModel
 
 
 def training_latent_box(model: NeuralModel, n: int = 20_000, seed: int = 0) -> tuple[Tensor, Tensor]:

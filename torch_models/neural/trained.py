@@ -1,31 +1,23 @@
-"""Loading trained networks: safetensors only, never pickle."""
+"""Trained runs on disk: safetensors weights and a ``state.json``, loaded as a ``NeuralModel``.
+
+Never pickle. ``SHIPPED`` is the decoder the add-on and farm use; ``BASELINE`` the
+paper's MLP, kept to measure it against.
+"""
 from __future__ import annotations
 
 import hashlib
 import json
-from dataclasses import dataclass
 from pathlib import Path
 
 from safetensors.torch import load_file
 from torch import nn
 
-from .loss import LOSS_WEIGHTS
-from .decoders import AnyDecoder, AnySampler, build_decoder, build_sampler
-from .networks import Encoder
+from . import kinds
+from .model import NeuralModel
+from .networks import DecoderNet, Encoder, Sampler
 
 SHIPPED = Path(__file__).resolve().parent / "weights"
 BASELINE = SHIPPED / "mlp"  # the paper's direct 4 x 64 MLP, kept to measure the shipped decoder against
-
-
-@dataclass
-class NeuralModel:
-    encoder: Encoder
-    decoder: AnyDecoder
-    sampler: AnySampler
-    digest: str  # sha256 of the weights file: which decoder a fitted material belongs to
-    alpha_floor: float = 0.0  # the training's angular floor, which fitting must apply too
-    relative_weight: float = 0.0  # the training loss's relative term, which fitting uses too
-    t_weight: float = LOSS_WEIGHTS[1]  # the training loss's weight of T, which fitting uses too
 
 
 def digest(folder: Path = SHIPPED) -> str:
@@ -44,6 +36,15 @@ def encoder_digest(folder: Path = SHIPPED) -> str:
     return h.hexdigest()
 
 
+def networks(encoder: Encoder, decoder: DecoderNet, sampler: Sampler) -> dict[str, nn.Module]:
+    """The networks a weights file holds, by the prefix of their tensors: a sampler only when it
+    has weights of its own (the MLP's; the hybrid samples its lobes)."""
+    nets = {"encoder": encoder, "decoder": decoder}
+    if isinstance(sampler, nn.Module):
+        nets["sampler"] = sampler
+    return nets  # type: ignore[return-value]
+
+
 def load_networks(path: Path, nets: dict[str, nn.Module]) -> None:
     """Fill each network from a weights file whose keys are prefixed by its name (``decoder.net.0.weight``)."""
     tensors = load_file(str(path))
@@ -53,19 +54,18 @@ def load_networks(path: Path, nets: dict[str, nn.Module]) -> None:
 
 def load(folder: Path = SHIPPED) -> NeuralModel:
     """The networks of a training run folder (weights.safetensors + state.json), frozen,
-    of the decoder kind its config names (``decoders.KINDS``)."""
+    of the decoder kind its config names (``kinds.KINDS``)."""
     weights, state = folder / "weights.safetensors", folder / "state.json"
     if not weights.is_file() or not state.is_file():
         raise FileNotFoundError(f"{folder}: no trained decoder here (weights.safetensors, state.json); "
                                 "run `python -m torch_models train-decoder` first")
-    cfg = json.loads(state.read_text())["config"]
-    decoder = build_decoder(cfg)
-    sampler = build_sampler(decoder)
-    nets = {"encoder": Encoder(), "decoder": decoder}
-    if isinstance(sampler, nn.Module):
-        nets["sampler"] = sampler
+    cfg = kinds.run_config(json.loads(state.read_text())["config"])
+    kind = kinds.kind_named(cfg.kind)
+    decoder = kind.build_decoder(cfg)
+    sampler = kind.build_sampler(decoder)
+    nets = networks(Encoder(), decoder, sampler)
     load_networks(weights, nets)
     for net in nets.values():
         net.eval().requires_grad_(False)
-    return NeuralModel(nets["encoder"], decoder, sampler, digest(folder),
-                       cfg.get("alpha_floor", 0.0), cfg.get("relative_weight", 0.0), cfg.get("t_weight", LOSS_WEIGHTS[1]))
+    return NeuralModel(nets["encoder"], decoder, sampler, digest(folder), cfg.alpha_floor, cfg.relative_weight,
+                       cfg.t_weight)
