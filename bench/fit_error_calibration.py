@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from bench.agreement_cases import cases
+from support.agreement_cases import cases
 from bench.common import REPORTS, add_out_argument, pyplot, save_chart, write_report
 from richmat_addon.core import fit_error as grades
 from torch_models.neural import trained

@@ -79,7 +79,11 @@ def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def read_vectors(folder: Path, step: float = QUANT) -> TexelVectors:
     """Parameter vectors of an enhanced material folder (params.json + EXRs), merged at ``step``."""
-    shape, vectors = texel_matrix(folder)
+    return dedupe(*texel_matrix(folder), step)
+
+
+def dedupe(shape: tuple[int, int] | None, vectors: np.ndarray, step: float = QUANT) -> TexelVectors:
+    """Texel vectors (H*W or 1, 22) of a texture of ``shape``, deduplicated and merged at ``step``."""
     exact, inverse = unique_rows(vectors + 0.0)  # + 0.0: -0.0 and 0.0 are one value
     keys = np.round(normalise(exact) / step).astype(np.int64)
     merged_keys, merged_of_exact = unique_rows(keys)
