@@ -46,7 +46,8 @@ from torch_models.brdf.model import LayeredBsdf, params_from_vectors
 from torch_models.generator.generate import preview_cameras
 from torch_models.generator.mesh_input import load_mesh
 from torch_models.generator.views import render_intrinsics, sample_texture
-from torch_models.neural import energy, fitting, weights
+from torch_models.neural import energy, fitting, trained
+from torch_models.neural.model import NeuralModel
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.closure_form import ClosureForm
 from torch_models.neural.evaluate import DEFAULT_PROBE
@@ -138,7 +139,7 @@ def subsample(image: np.ndarray, size: int) -> np.ndarray:
     return np.ascontiguousarray(image[::step, ::step])
 
 
-def fit_material(model: weights.NeuralModel, folder: Path, name: str, size: int, steps: int,
+def fit_material(model: NeuralModel, folder: Path, name: str, size: int, steps: int,
                  cache: Path | None) -> Material:
     """The fit as the add-on's Fit runs it (``torch_models fit`` at its defaults), of the material's
     maps at most ``size`` texels a side (0: as they are); fits are kept in ``cache`` when given."""
@@ -168,7 +169,7 @@ def fit_material(model: weights.NeuralModel, folder: Path, name: str, size: int,
                     z, scale, base.astype(np.float32), seconds)
 
 
-def oracle_latents(model: weights.NeuralModel, m: Material, visible: torch.Tensor, args: argparse.Namespace,
+def oracle_latents(model: NeuralModel, m: Material, visible: torch.Tensor, args: argparse.Namespace,
                    key: Path | None) -> tuple[torch.Tensor, dict]:
     """Latents (K, 6) with the ``visible`` vectors refitted alone at a large budget (the rest as shipped);
     kept at ``key`` when given."""
@@ -190,7 +191,7 @@ def oracle_latents(model: weights.NeuralModel, m: Material, visible: torch.Tenso
     return z, {"vectors": int(len(visible)), "seconds": seconds, "held_out_loss": losses}
 
 
-def chain_bsdfs(model: weights.NeuralModel, m: Material, uv: torch.Tensor, z_oracle: torch.Tensor,
+def chain_bsdfs(model: NeuralModel, m: Material, uv: torch.Tensor, z_oracle: torch.Tensor,
                 tau: float) -> dict:
     """Per render of ``CHAIN`` and ``BESIDE``, the BSDF of this material's pixels (``uv`` (N, 2))."""
     base = sample_texture(m.base, uv).clamp(min=0.0)
@@ -198,7 +199,7 @@ def chain_bsdfs(model: weights.NeuralModel, m: Material, uv: torch.Tensor, z_ora
     per_texel = m.representative
     bilateral = bilinear.bilateral(m.z[per_texel], nearest, tau)
 
-    def neural(z: torch.Tensor, taps: Taps, decoder_model: weights.NeuralModel) -> NeuralBsdf:
+    def neural(z: torch.Tensor, taps: Taps, decoder_model: NeuralModel) -> NeuralBsdf:
         zt, st = z[per_texel], m.scale[per_texel][:, None]
         return NeuralBsdf(decoder_model, taps.gather(zt), base, taps.gather(st))
 
@@ -235,7 +236,7 @@ class PixelBsdf:
         return self._each("sample", wi, u, 3)
 
 
-def asset_budget(name: str, model: weights.NeuralModel, env: EnvMap, args: argparse.Namespace,
+def asset_budget(name: str, model: NeuralModel, env: EnvMap, args: argparse.Namespace,
                  tmp: Path) -> tuple[dict, dict]:
     """The asset's report block and its images (scene -> chain name -> AgX image)."""
     path = SHARED_ASSETS / "models" / f"{name}.glb"
@@ -382,7 +383,7 @@ def main() -> None:
     add_out_argument(parser, "neural_error_budget.json")
     args = parser.parse_args()
     start = time.perf_counter()
-    model = weights.load(weights.SHIPPED)
+    model = trained.load(trained.SHIPPED)
     env = EnvMap.load(DEFAULT_PROBE)
     report: dict = {"settings": {**{k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()
                                     if k != "out"},
@@ -398,7 +399,7 @@ def main() -> None:
                 print(f"{name} {scene}: floor {b['flip']['noise_floor']:.4f}, " +
                       ", ".join(f"{k} {v:+.4f}" for k, v in b["terms"].items()), flush=True)
             report["wall_seconds"] = time.perf_counter() - start
-            write_report(args.out, report, [weights.SHIPPED])
+            write_report(args.out, report, [trained.SHIPPED])
             chart(report, args.out.with_suffix(".png"))
             sheet(images, args.out.with_name(f"{args.out.stem}_sheet.png"))
 
