@@ -298,13 +298,15 @@ def render(bsdf: PixelBsdf, env: EnvMap, normals: np.ndarray, views: np.ndarray,
 
 def scene_terms(imgs: dict, mask: np.ndarray, pixel_material: np.ndarray, names: list[str]) -> dict:
     """Mean FLIP of each chain render against the reference, over each material's pixels and all of them,
-    and the terms (the rise from one render to the next)."""
+    and the terms (the rise from one render to the next). The chain's renders share the reference's
+    seed, so what they differ by is the material, not the noise; the noise floor (the reference at
+    another seed) says how far apart two renders of one material are."""
     maps = {k: flip_map(imgs["reference"], imgs[k])[0][mask] for k in CHAIN[1:] + BESIDE}
     maps["noise_floor"] = flip_map(imgs["reference"], imgs["reference_seed1"])[0][mask]
 
     def block(select: np.ndarray) -> dict:
         flip = {k: float(v[select].mean()) for k, v in maps.items()}
-        terms, previous = {}, flip["noise_floor"]
+        terms, previous = {}, 0.0
         for k in CHAIN[1:]:
             terms[k] = flip[k] - previous
             previous = flip[k]
@@ -316,32 +318,33 @@ def scene_terms(imgs: dict, mask: np.ndarray, pixel_material: np.ndarray, names:
 
 
 def chart(report: dict, path: Path) -> None:
-    """Stacked terms per material (and the asset's whole), one panel per scene."""
+    """Per material (and the asset's whole), one panel per scene: the chain's terms stacked, the noise
+    floor as a tick, and the bilateral latents' preview (closure form included) as a diamond."""
     plt = pyplot()
-    scenes = list(SCENES)
-    fig, axes = plt.subplots(len(scenes), 1, figsize=(max(8, 0.55 * sum(len(a["materials"]) + 1 for a in
-                                                                           report["assets"].values())), 8))
-    colours = {"noise_floor": "0.75", "lookup": "tab:gray", "reach": "tab:red", "fit": "tab:orange",
-               "sampling": "tab:purple", "closure": "tab:blue"}
-    for ax, scene in zip(axes, scenes):
-        labels, stacks = [], []
-        for asset, a in report["assets"].items():
-            for mat, b in [("(all)", a[scene]["all"]), *a[scene]["per_material"].items()]:
-                labels.append(f"{asset}\n{mat}"[:40])
-                stacks.append({"noise_floor": b["flip"]["noise_floor"], **b["terms"]})
-        x = np.arange(len(labels))
+    rows = [(f"{asset}\n{mat}"[:40], asset, mat) for asset, a in report["assets"].items()
+            for mat in ["(all)", *a["probe"]["per_material"]]]
+    fig, axes = plt.subplots(len(SCENES), 1, figsize=(max(8, 0.6 * len(rows) + 2), 8.5))
+    colours = {"lookup": "tab:gray", "reach": "tab:red", "fit": "tab:orange", "sampling": "tab:purple",
+               "closure": "tab:blue"}
+    for ax, scene in zip(axes, SCENES):
+        blocks = [report["assets"][asset][scene]["all"] if mat == "(all)"
+                  else report["assets"][asset][scene]["per_material"][mat] for _, asset, mat in rows]
+        x = np.arange(len(rows))
         bottom_pos, bottom_neg = np.zeros(len(x)), np.zeros(len(x))
         for key, colour in colours.items():
-            v = np.array([s[key] for s in stacks])
+            v = np.array([b["terms"][key] for b in blocks])
             pos, neg = np.clip(v, 0, None), np.clip(v, None, 0)
-            ax.bar(x, pos, 0.7, bottom=bottom_pos, color=colour, label=TERMS.get(key, "noise floor"))
+            ax.bar(x, pos, 0.7, bottom=bottom_pos, color=colour, label=TERMS[key])
             ax.bar(x, neg, 0.7, bottom=bottom_neg, color=colour)
             bottom_pos += pos
             bottom_neg += neg
+        ax.plot(x, [b["flip"]["noise_floor"] for b in blocks], "k_", ms=16, label="noise floor (another seed)")
+        ax.plot(x, [b["flip"]["closure_bilateral"] for b in blocks], "D", color="tab:green", ms=5,
+                label="with bilateral latents")
         ax.axhline(0.05, ls="--", color="k", lw=0.8, label="target 0.05")
-        ax.set_xticks(x, labels, fontsize=6, rotation=60, ha="right")
-        ax.set_ylabel("mean FLIP vs analytic")
-        ax.set_title(f"where the neural preview's error comes from; scene: {scene}")
+        ax.set_xticks(x, [r[0] for r in rows], fontsize=6, rotation=60, ha="right")
+        ax.set_ylabel("mean FLIP vs the analytic material")
+        ax.set_title(f"where the neural preview's error comes from (torch, G-buffer); scene: {scene}")
         ax.legend(fontsize=7, ncol=4)
     save_chart(fig, path)
 

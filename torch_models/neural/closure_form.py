@@ -70,6 +70,8 @@ class ClosureForm(nn.Module):
         over ``points`` (m, 2) in [0, 1)^2 shared by all points, or ``draws`` random ones per point.
         ``lobes``: the head at (latent, wi) where the caller has it already."""
         d = self.decoder
+        if d.view_gates:  # nothing to hold: the gates read wi alone
+            return d.gates_at(latent, wi, wi)
         lobes = d.head_at(latent, wi) if lobes is None else lobes
         if self.rule == "dominant":  # the GGX lobes' gates at the mirror of wi, the others' at the normal
             normal = torch.zeros_like(wi)

@@ -13,7 +13,9 @@ metals badly and half its latents gain energy. Here the peaks are closed-form:
   how a coat's Fresnel moves energy between its peak and the base) and R(wi) for the
   renderer's sampling split;
 * **gates** (latent and both directions): per-lobe RGB factors in [0, 1] that shape
-  each lobe (layering, haze, coat tint, dust, Fresnel beyond Schlick).
+  each lobe (layering, haze, coat tint, dust, Fresnel beyond Schlick). A view-gated
+  hybrid (``view_gates``) reads the latent and the view cosine only: its lobes are
+  then exactly closures a renderer can light (``closure_form.py``), for less shaping.
 
     f_neu cos = sum_k w_k(wi) g_k(wi, wo) F_k(wi.h) D_k G2_k / (4 cos_i)
                 + w_d(wi) g_d(wi, wo) c_d cos_o / pi
@@ -103,18 +105,18 @@ class HybridDecoder(nn.Module):
     kind = "hybrid"
 
     def __init__(self, lobes: int, width: int, gate_width: int, gate_depth: int, alpha_floor: float,
-                 unit_lobes: bool, sheen: bool) -> None:
+                 unit_lobes: bool, sheen: bool, view_gates: bool = False) -> None:
         """Sizes and options from the run's config (``hybrid_kind.HybridConfig``)."""
         super().__init__()
         self.lobes, self.width, self.gate_width, self.gate_depth = lobes, width, gate_width, gate_depth
-        self.unit_lobes, self.sheen = unit_lobes, sheen
+        self.unit_lobes, self.sheen, self.view_gates = unit_lobes, sheen, view_gates
         self.t_slot = lobes + 1 + sheen  # slots: K GGX lobes, diffuse, [sheen], T, absorbed
         if unit_lobes:  # each GGX lobe divided by its albedo, so slot weights are energies; the table
             # travels in the weights file, so the preview shader reads the same one
             self.register_buffer("ggx_e", upper_table())
         # per lobe an alpha logit and F0 rgb; diffuse rgb; [sheen roughness and rgb]; slot logits; R
         self.head = mlp(LATENT + 3, width, 2, 4 * lobes + 3 + 4 * sheen + self.t_slot + 2 + 1)
-        self.gates = mlp(LATENT + 10, gate_width, gate_depth, 3 * (lobes + 1 + sheen))
+        self.gates = mlp(LATENT + (3 if view_gates else 10), gate_width, gate_depth, 3 * (lobes + 1 + sheen))
         if sheen:  # Cycles' LTC table (A, B), so the preview shader needs nothing but the weights file
             self.register_buffer("sheen_ltc", tables.table("sheen_ltc", torch.device("cpu"), torch.float32)[:2].clone())
         self.register_buffer("alpha_floor", torch.tensor(float(alpha_floor)))
@@ -157,8 +159,10 @@ class HybridDecoder(nn.Module):
         return self.lobe_sum(lobes, latent, wi, wo), lobes.weights[:, self.t_slot:self.t_slot + 1], lobes.r
 
     def gates_at(self, latent: Tensor, wi: Tensor, wo: Tensor) -> Tensor:
-        """(N, slots, 3) the gates of the GGX lobes, the diffuse lobe [and the sheen] at (wi, wo)."""
-        gates = torch.sigmoid(self.gates(torch.cat([latent, direction_features(wi, wo)], -1)))
+        """(N, slots, 3) the gates of the GGX lobes, the diffuse lobe [and the sheen] at (wi, wo)
+        (at wi alone for view gates)."""
+        directions = view_features(cos_theta(wi)) if self.view_gates else direction_features(wi, wo)
+        gates = torch.sigmoid(self.gates(torch.cat([latent, directions], -1)))
         return gates.reshape(-1, self.lobes + 1 + self.sheen, 3)
 
     def lobe_sum(self, lobes: Lobes, latent: Tensor, wi: Tensor, wo: Tensor, gates: Tensor | None = None) -> Tensor:

@@ -37,6 +37,7 @@ class HybridConfig(TrainConfig):
     unit_lobes: bool = False  # GGX lobes normalised to unit albedo (hybrid.HybridDecoder)
     sheen: bool = False  # a unit-albedo LTC sheen lobe beside the GGX and diffuse lobes
     anneal: float = 0.6  # share of the decoder phase over which the floor falls (geometrically)
+    view_gates: bool = False  # gates from (latent, view cosine) only: the lobes are exact closures
 
 
 def annealed_floor(cfg: HybridConfig, step: int) -> float:
@@ -78,7 +79,7 @@ class HybridKind:
     def build_decoder(self, cfg: TrainConfig) -> HybridDecoder:
         h = cast(HybridConfig, cfg)
         return HybridDecoder(h.lobes, h.head_width, h.gate_width, h.gate_depth, h.lobe_alpha_floor[-1],
-                             h.unit_lobes, h.sheen)
+                             h.unit_lobes, h.sheen, h.view_gates)
 
     def build_sampler(self, decoder: DecoderNet) -> LobeSampler:
         return LobeSampler(cast(HybridDecoder, decoder))
