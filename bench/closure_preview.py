@@ -54,47 +54,26 @@ SCENES = {"probe": None, "probe_and_sun": SUN}
 PREVIEW_SHADER_FILES = ("neural_osl.py", "schema.py", "tensor_file.py")
 
 CYCLES = """
-import json, sys, time, numpy as np, bpy
+import json, sys, time, numpy as np
 from pathlib import Path
-from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
-prefer_blender_bundled_modules()
-from richmat_addon.blender import cycles_builder, preview_scene
-from richmat_addon.core.preview import PreviewScene
+from richmat_addon.blender import preview_scene
+from support.neural_ball import neural_ball, read_exr, set_material
 job = json.loads(Path(sys.argv[1]).read_text())
-bpy.ops.wm.read_homefile(use_empty=True)
-scene = bpy.context.scene
-mat = bpy.data.materials.new("neural")
-tree = mat.node_tree
-tree.nodes.clear()
-text = bpy.data.texts.new("neural.osl")
-text.from_string(Path(job["shader"]).read_text())
-node = tree.nodes.new("ShaderNodeScript")
-node.mode, node.script = "INTERNAL", text
-cycles_builder.compile_script_node(node)
-tree.links.new(node.outputs["BSDF"], tree.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
-preview_scene.setup(scene, PreviewScene(resolution=job["resolution"]), Path(job["probe"]), mat, job["spp"])
-scene.cycles.shading_system = True
+scene, node = neural_ball(Path(job["shader"]).read_text(), Path(job["probe"]), job["resolution"], job["spp"])
 if "probe" in node.inputs:
     node.inputs["probe"].default_value = job["probe"]
 if job["sun"] is not None:
     preview_scene.add_sun(scene, *job["sun"])
-res = job["resolution"]
 seconds = {}
 for case in job["cases"]:
-    node.inputs["latent_0"].default_value = case["z"][:3]
-    node.inputs["latent_1"].default_value = case["z"][3:]
-    node.inputs["base_color"].default_value = (*case["base"], 1.0)
+    set_material(node, case["z"], case["base"])
     for seed in (0, 1):
         scene.cycles.seed = seed
         path = Path(job["out"]) / f"{case['name']}_{seed}.exr"
         start = time.perf_counter()
         preview_scene.render_exr(scene, path)
         seconds[f"{case['name']}_{seed}"] = time.perf_counter() - start
-        img = bpy.data.images.load(str(path))
-        px = np.empty(res * res * 4, np.float32)
-        img.pixels.foreach_get(px)
-        np.save(path.with_suffix(".npy"), px.reshape(res, res, 4)[::-1, :, :3])
-        bpy.data.images.remove(img)
+        np.save(path.with_suffix(".npy"), read_exr(path)[..., :3])
 (Path(job["out"]) / "seconds.json").write_text(json.dumps(seconds))
 """
 

@@ -42,46 +42,26 @@ from torch_models.render.tonemap import agx
 TARGET = 0.05
 
 CYCLES = """
-import json, sys, time, numpy as np, bpy
+import json, sys, time, numpy as np
 from pathlib import Path
-from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
-prefer_blender_bundled_modules()
-from richmat_addon.blender import cycles_builder, preview_scene
-from richmat_addon.core.preview import PreviewScene
+from richmat_addon.blender import preview_scene
 from richmat_addon.core.neural_osl import neural_osl_source
 from richmat_addon.core.tensor_file import read_safetensors
+from support.neural_ball import neural_ball, read_exr, set_material
 job = json.loads(Path(sys.argv[1]).read_text())
-bpy.ops.wm.read_homefile(use_empty=True)
-scene = bpy.context.scene
-mat = bpy.data.materials.new("neural")
-tree = mat.node_tree
-tree.nodes.clear()
-text = bpy.data.texts.new("neural.osl")
-text.from_string(neural_osl_source(read_safetensors(job["weights"])))
-node = tree.nodes.new("ShaderNodeScript")
-node.mode, node.script = "INTERNAL", text
-cycles_builder.compile_script_node(node)
-tree.links.new(node.outputs["BSDF"], tree.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
-preview_scene.setup(scene, PreviewScene(resolution=job["resolution"]), Path(job["probe"]), mat, job["spp"])
-scene.cycles.shading_system = True
+source = neural_osl_source(read_safetensors(job["weights"]))
+scene, node = neural_ball(source, Path(job["probe"]), job["resolution"], job["spp"])
 if "probe" in node.inputs:  # the MLP's shader integrates its lobe from the probe; the hybrid's are closures
     node.inputs["probe"].default_value = job["probe"]
     node.inputs["samples"].default_value = job["directions"]
-res = job["resolution"]
 seconds = {}
 for case in job["cases"]:
-    node.inputs["latent_0"].default_value = case["z"][:3]
-    node.inputs["latent_1"].default_value = case["z"][3:]
-    node.inputs["base_color"].default_value = (*case["base"], 1.0)
+    set_material(node, case["z"], case["base"])
     path = Path(job["out"]) / (case["name"] + ".exr")
     start = time.perf_counter()
     preview_scene.render_exr(scene, path)
     seconds[case["name"]] = time.perf_counter() - start
-    img = bpy.data.images.load(str(path))
-    px = np.empty(res * res * 4, np.float32)
-    img.pixels.foreach_get(px)
-    np.save(path.with_suffix(".npy"), px.reshape(res, res, 4)[::-1, :, :3])
-    bpy.data.images.remove(img)
+    np.save(path.with_suffix(".npy"), read_exr(path)[..., :3])
 (Path(job["out"]) / "seconds.json").write_text(json.dumps(seconds))
 """
 

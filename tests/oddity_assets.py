@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from richmat_addon.core.gltf_materials import glb_bytes
+from richmat_addon.core.gltf_container import glb_bytes
 from support.blender_child import run_blender
 from tests.test_gltf_io import _Builder, base_color_image, cube_arrays, orm_image, png
 

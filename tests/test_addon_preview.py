@@ -56,33 +56,19 @@ def cycles_ball(blender_run, weights: Path, latent: list[float], base: list[floa
     other inputs by name (the MLP's ``samples``); the MLP's shader reads the probe itself."""
     inputs = dict(inputs or {})
     out = blender_run(f'''
-import json, numpy as np, bpy
+import numpy as np
 from pathlib import Path
-from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
-prefer_blender_bundled_modules()
-from richmat_addon.blender import cycles_builder, preview_scene
-from richmat_addon.core.preview import PreviewScene
+from richmat_addon.blender import preview_scene
 from richmat_addon.core.neural_osl import neural_osl_source
 from richmat_addon.core.tensor_file import read_safetensors
-bpy.ops.wm.read_homefile(use_empty=True)
-scene = bpy.context.scene
-mat = bpy.data.materials.new("neural")
-tree = mat.node_tree
-tree.nodes.clear()
-text = bpy.data.texts.new("neural.osl")
-text.from_string(neural_osl_source(read_safetensors({str(weights / "weights.safetensors")!r})))
-node = tree.nodes.new("ShaderNodeScript")
-node.mode, node.script = "INTERNAL", text
-cycles_builder.compile_script_node(node)
-tree.links.new(node.outputs["BSDF"], tree.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
-node.inputs["latent_0"].default_value = {latent[:3]}
-node.inputs["latent_1"].default_value = {latent[3:]}
-node.inputs["base_color"].default_value = (*{base}, 1.0)
+from support.neural_ball import neural_ball, read_exr, set_material
+source = neural_osl_source(read_safetensors({str(weights / "weights.safetensors")!r}))
+scene, node = neural_ball(source, Path({str(PROBE)!r}), {res}, {spp})
+set_material(node, {latent!r}, {base!r})
 for name, value in {inputs!r}.items():
     node.inputs[name].default_value = value
 if "probe" in node.inputs and {sun is None!r}:
     node.inputs["probe"].default_value = {str(PROBE)!r}
-preview_scene.setup(scene, PreviewScene(resolution={res}), Path({str(PROBE)!r}), mat, {spp})
 sun = {None if sun is None else (tuple(sun.direction), sun.irradiance)!r}
 if sun is not None:
     background = scene.world.node_tree.nodes["Background"]
@@ -90,13 +76,9 @@ if sun is not None:
         scene.world.node_tree.links.remove(link)
     background.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
     preview_scene.add_sun(scene, *sun)
-scene.cycles.shading_system = True
 path = Path({str(folder / "cycles.exr")!r})
 preview_scene.render_exr(scene, path)
-img = bpy.data.images.load(str(path))
-px = np.empty({res} * {res} * 4, np.float32)
-img.pixels.foreach_get(px)
-np.save({str(folder / "cycles.npy")!r}, px.reshape({res}, {res}, 4)[::-1])
+np.save({str(folder / "cycles.npy")!r}, read_exr(path))
 ''')
     assert out is None
     return np.load(folder / "cycles.npy")

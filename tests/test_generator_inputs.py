@@ -13,7 +13,7 @@ from PIL import Image
 from richmat_addon.core import neural_folder
 from richmat_addon.core.colour import srgb_to_linear
 from richmat_addon.core.folder_io import read_exr
-from richmat_addon.core.gltf_materials import glb_bytes
+from richmat_addon.core.gltf_container import glb_bytes
 from torch_models.cli import main
 from torch_models.cli_generate import PREVIEW_FRAMES, PREVIEW_SIZE, RUN_RECORD
 from torch_models.generator import generate as gen

@@ -1,6 +1,6 @@
 """External glTF URIs are read only inside the asset's folder, from regular files under a size cap.
 
-Every reader of buffers and images by URI goes through ``gltf_materials.resolve_uri``:
+Every reader of buffers and images by URI goes through ``gltf_container.resolve_uri``:
 the material/geometry reader, the generator's mesh input (trimesh's resolver) and
 batch's check before Blender's importer. Each crafted file below must be refused
 with an error naming the URI, and the file it points at must never be opened.
@@ -17,8 +17,9 @@ import numpy as np
 import pytest
 
 from batch.gltf_import import checked_files, prepare
-from richmat_addon.core import gltf_materials
-from richmat_addon.core.gltf_materials import GltfError, load_gltf, parse_file, read_materials
+from richmat_addon.core import gltf_container
+from richmat_addon.core.gltf_container import GltfError, load_gltf, parse_file
+from richmat_addon.core.gltf_materials import read_materials
 from tests.test_gltf_io import base_color_image, pil_decode, png
 
 Craft = Callable[[Path], str]  # makes what the URI points at inside tmp_path; returns the URI
@@ -119,7 +120,7 @@ def test_file_over_the_cap_is_refused(asset_dir: Path, opened: list[str], monkey
     gltf = _asset(asset_dir, buffer_uri="big.bin")
     assert len(load_gltf(gltf).buffers[0]) == 64
     opened.clear()
-    monkeypatch.setattr(gltf_materials, "MAX_URI_BYTES", 63)
+    monkeypatch.setattr(gltf_container, "MAX_URI_BYTES", 63)
     with pytest.raises(GltfError, match=r"'big.bin', which is refused: .* 64 bytes, over the 63 byte cap"):
         load_gltf(gltf)
     assert opened == []

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from richmat_addon.core.colour import LUMINANCE
 from richmat_addon.core.neural_osl import neural_osl_source
 from richmat_addon.core.tensor_file import read_safetensors
 
@@ -35,7 +36,7 @@ def agree(cycles: np.ndarray, ref, tolerance: float = 0.04, floor: float = 0.05)
     the brightest 1 % of pixels: a near-mirror lobe's pinpoint highlight under a lamp is too rare a hit
     for either renderer to estimate at test sample counts."""
     ball = (cycles[..., 3] > 0.99) & (ref.alpha > 0.99)
-    luminance = np.array([0.2126, 0.7152, 0.0722])
+    luminance = np.asarray(LUMINANCE)
     c, t = cycles[..., :3][ball] @ luminance, ref.rgb[ball] @ luminance
     assert ball.sum() > 200 and np.isfinite(c).all() and t.mean() > floor, (ball.sum(), t.mean())
     assert abs(np.median(c) / np.median(t) - 1) < tolerance, (np.median(c), np.median(t))

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from richmat_addon.core.colour import srgb_to_linear
+from richmat_addon.core.colour import LUMINANCE, srgb_to_linear
 
 READ = r'''
 import json
@@ -135,7 +135,7 @@ def test_both_policies_read_one_way_and_lenient_notes_what_strict_refuses(blende
     orm_f = orm / np.float32(255)
     assert np.allclose(colour, srgb_to_linear(base / np.float32(255)), atol=1e-6)
     assert np.allclose(rough[..., 0], orm_f[..., 1] * 0.5, atol=1e-6)
-    assert np.allclose(metal[..., 0], orm_f @ np.float32([0.2126, 0.7152, 0.0722]), atol=1e-5)
+    assert np.allclose(metal[..., 0], orm_f @ np.float32(LUMINANCE), atol=1e-5)
 
     # 10 x 6 into 4: 4 x 4 blocks (the last ones partial), each the mean of its stored texels
     colour = np.asarray(result["downscaled"]["lenient"]["maps"][0])

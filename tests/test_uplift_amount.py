@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from richmat_addon.core.enhance import auto_touch, baseline, enhance, resolve_type
-from richmat_addon.core.gltf_materials import load_gltf, read_materials
+from richmat_addon.core.gltf_container import load_gltf
+from richmat_addon.core.gltf_materials import read_materials
 from richmat_addon.core.gltf_mesh import read_geometry
 from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.uv_raster import rasterize

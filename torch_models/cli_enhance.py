@@ -22,7 +22,8 @@ from tqdm import tqdm
 from richmat_addon.core import material_folder
 from richmat_addon.core.enhance import enhance, resolve_type
 from richmat_addon.core.enhancement_types import DIELECTRIC_ONLY, DUST_TYPES, TYPES, index_ranges
-from richmat_addon.core.gltf_materials import GltfMaterial, load_gltf, read_materials
+from richmat_addon.core.gltf_container import load_gltf
+from richmat_addon.core.gltf_materials import GltfMaterial, read_materials
 from richmat_addon.core.gltf_mesh import MeshGeometry, read_geometry
 from richmat_addon.core.maps import ParamMap
 from richmat_addon.core.uv_raster import rasterize

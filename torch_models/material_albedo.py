@@ -4,9 +4,10 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from richmat_addon.core.colour import LUMINANCE
 from richmat_addon.core.maps import EnhancedMaterial
 
-from .brdf.model import LUMINANCE, LayeredBsdf
+from .brdf.model import LayeredBsdf
 from .demo_render import sample_map
 
 VIEW_COSINES = 8  # Gauss-Legendre nodes over the view cosine

@@ -13,6 +13,7 @@ import colorsys
 import re
 from typing import Any, Sequence
 
+from .colour import linear_to_gamma
 from .enhancement_types import BASE_FAMILY, FAMILIES
 
 # Hue names by upper bound of the hue angle in degrees.
@@ -24,10 +25,10 @@ _HUES = ((15, "red"), (45, "orange"), (70, "yellow"), (160, "green"), (200, "cya
 def colour_name(linear_rgb: Sequence[float]) -> str:
     """A plain colour word for a linear RGB base colour.
 
-    Encoded with a 1/2.2 power rather than the exact sRGB curve: the exact curve renames the colour of 37
+    Encoded with the corpus's 1/2.2 power (``colour.linear_to_gamma``) rather than the exact sRGB curve: the exact curve renames the colour of 37
     of the first 1200 procedural corpus objects (mostly wood, brown to orange), and the shipped generator
     learned, and the benches prompt it with, the captions this one writes."""
-    srgb = [max(0.0, min(1.0, c)) ** (1 / 2.2) for c in linear_rgb]
+    srgb = [linear_to_gamma(c) for c in linear_rgb]
     h, s, v = colorsys.rgb_to_hsv(*srgb)
     if v < 0.15:
         return "black"

@@ -30,7 +30,6 @@ METALLIC_THRESHOLD = 0.5  # mean metalness above which a material counts as a me
 # 0.18 is sRGB 0.46): a tyre at 0.02 keeps 4 % of it, a mid-grey paint all of it.
 FULL_TOUCH_LUMINANCE = 0.18
 TOUCH_POWER = 1.5
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722], np.float32)  # Rec.709, scene-linear
 
 
 def is_metallic(pbr: PbrInputs) -> bool:
@@ -134,7 +133,7 @@ def auto_touch(pbr: PbrInputs) -> ParamMap:
     """How much of the enhancement Auto applies, per texel of the base colour (a constant for a constant
     base): full on a base of mid-grey luminance or lighter, less on darker ones (tyres, dark glass, dark
     paint), which the rules' light dust, haze and scatter would otherwise turn grey."""
-    lum = np.nan_to_num(np.clip(pbr.base_color.value, 0.0, 1.0)) @ LUMINANCE
+    lum = np.nan_to_num(np.clip(pbr.base_color.value, 0.0, 1.0)) @ np.asarray(LUMINANCE, np.float32)
     return ParamMap((np.clip(lum / FULL_TOUCH_LUMINANCE, 0.0, 1.0) ** TOUCH_POWER)[..., None].astype(np.float32))
 
 

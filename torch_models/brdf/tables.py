@@ -3,7 +3,7 @@
 Cycles ships these as arrays (``scene/shader.tables``, produced by
 ``app/cycles_precompute.cpp`` with Monte Carlo). We regenerate them from their
 definitions with a deterministic Gauss-Legendre quadrature of the VNDF
-(``vndf_quadrature``; fp64, 0.9 s for all tables on 2 cores, cached per process)
+(``vndf_quadrature``; fp64, cached per process: its cost is in docs/lobes.md)
 and only check them against published values in the tests; nothing is copied.
 
 Conventions (``kernel/util/lookup_table.h``, ``cycles_precompute.cpp``):

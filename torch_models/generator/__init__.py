@@ -2,7 +2,7 @@
 from richmat_addon.core import enhancement_types
 
 # Sampling steps, views and samples averaged of a generation, chosen from bench/generate_speed.py
-# (docs/reports/generate_speed.json; the samples from its samples sweep, docs/reports/generate_samples.json).
+# (docs/reports/generate_speed.json; the samples from its samples sweep, in docs/history.md).
 # Here, torch-free, so that the CLI's --help reads them without importing torch.
 DEFAULT_STEPS = 18
 DEFAULT_VIEWS = 12

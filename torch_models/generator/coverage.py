@@ -8,16 +8,14 @@ the remaining ones are picked greedily among rings of cameras at other elevation
 the views from straight above and below: each adds most to the sum over the chart
 texels of every material of the best cos^2 (the weight the projection gives a texel)
 between the texel's normal and the direction to a picked camera that sees it.
-Candidates are rasterised at 4x the model's resolution (picks judged at the
-projection's 8x see the same shares to within 2 points on the sample assets, in a
-quarter of the time). The model needs no view order (its tokens carry world
-positions, ``dit.py``) and every candidate keeps batch's lens and framing.
+Candidates are rasterised at 4x the model's resolution, not the projection's 8x:
+the picks see about the same shares at a quarter of the cost. The model needs no view
+order (its tokens carry world positions, ``dit.py``) and every candidate keeps batch's
+lens and framing.
 
-Keeping the orbit costs little coverage and keeps the model on the views it knows:
-on six held-out procedural objects (2 samples averaged, no energy guard) the orbit
-alone gave 40.0 dB on average, all twelve views picked greedily 40.7, the orbit of 8
-plus 4 picked 41.0 (per object within the sampling spread of a few dB), while on
-the sample assets the last sees 66-100 % of the texels (docs/generator.md).
+Keeping the orbit costs little coverage and keeps the model on the views it knows
+(coverage: docs/generator.md, "Real assets"; the comparison with all views picked
+greedily: docs/history.md).
 """
 from __future__ import annotations
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from richmat_addon.core.colour import gamma_to_linear
 from richmat_addon.core.maps import PbrInputs, ParamMap
 from richmat_addon.core.uv_raster import rasterize as uv_rasterize
 from .views import Mesh
@@ -90,10 +91,10 @@ def unwrapped(mesh) -> Mesh:  # mesh: trimesh.Trimesh
 
 
 def _hsv(h: float, s: float, v: float) -> np.ndarray:
-    """Linear RGB of an sRGB-space HSV colour, decoded with a 2.2 power rather than the exact sRGB curve
-    (``colour.srgb_to_linear``, at most 0.0085 apart): the corpus the shipped generator trained on and the
+    """Linear RGB of an sRGB-space HSV colour, decoded with the corpus's 2.2 power (``colour.gamma_to_linear``)
+    rather than the exact sRGB curve (``colour.srgb_to_linear``, at most 0.0085 apart): the corpus the shipped generator trained on and the
     benches' held-out procedural objects were made with it."""
-    return np.asarray(colorsys.hsv_to_rgb(h % 1.0, s, v)) ** 2.2
+    return gamma_to_linear(np.asarray(colorsys.hsv_to_rgb(h % 1.0, s, v)))
 
 
 METAL_COLOURS = {"silver": (0.91, 0.92, 0.92), "gold": (1.0, 0.77, 0.34), "copper": (0.95, 0.64, 0.54),

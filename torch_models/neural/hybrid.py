@@ -40,10 +40,12 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor, nn
 
+from richmat_addon.core.schema import SHEEN_ROUGHNESS_MIN
+
 from ..brdf.frame import cos_theta, safe_normalize, sin2_theta
 from ..brdf import tables
 from ..brdf.ggx import ggx_pdf, ggx_sample
-from ..brdf.lobes import SHEEN_ROUGHNESS_MIN, sheen_pdf_at, sheen_pdf_setup, sheen_sample
+from ..brdf.lobes import sheen_pdf_at, sheen_pdf_setup, sheen_sample
 from ..brdf.model import luminance
 from .networks import LATENT, direction_features, mlp
 

@@ -3,8 +3,7 @@
 Cycles importance-samples its pixel filter: each camera ray is offset from the
 pixel centre by a distance drawn, per axis, from the filter's profile. Its
 default is a Blackman-Harris "width" of 1.5 px, and the window it samples spans
-twice that: measured on the ball's silhouette, the coverage (alpha) of edge
-pixels matches Cycles to 0.015 with a 3 px window and only to 0.083 with 1.5 px.
+twice that (docs/renderer.md measures the ball's edge coverage both ways).
 Doing the same here makes the two renderers antialias edges identically.
 """
 from __future__ import annotations
