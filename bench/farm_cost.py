@@ -27,6 +27,7 @@ The cost model prices 10 000 assets and the paper's 10 640-asset dataset on 16-c
 nodes from the mean CPU seconds per asset, before and after.
 
     python -m bench.farm_cost [--assets WaterBottle ...] [--work DIR] [--baseline REV] [--sweep [256 128 ...]]
+"""
 from __future__ import annotations
 
 import argparse
