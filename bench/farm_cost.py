@@ -3,8 +3,8 @@
 1. The farm. Each asset goes through ``batch/render_dataset.py`` on its own at the
    defaults (512 px, 16 frames, 16 spp, 300 fit steps, the shipped decoder), with
    ``--max-texture`` above every texture (checked: no "downscaled" note) and one
-   worker, so every child renders or fits with one thread, as on a node that runs
-   one asset per core. Per stage, CPU seconds from the manifest (each child times its
+   worker, so every child renders or fits with all of the machine's cores
+   (``threads_per_child`` in the report: 2 here). Per stage, CPU seconds from the manifest (each child times its
    own stages with ``time.process_time``); the run's whole CPU comes from ``wait4``,
    and what no child claims is the orchestrator's ("overhead"). "before" is the farm
    of ``--baseline`` (a commit, checked out with ``git archive``: today's code and
