@@ -113,7 +113,7 @@ ROWS: tuple[DocNumber, ...] = (
     DocNumber(README, "{518} CPU-hours per 10 000 assets", R + "farm_cost.json",
               "cost_model/after/cpu_hours_per_10000_assets"),
     DocNumber(README, "all {10} checks pass", R + "slurm_e2e.json", "len:checks"),
-    DocNumber(README, "{415} files compared, identical", R + "batch_restart.json", "comparison/files_compared"),
+    DocNumber(README, "{416} files compared, identical", R + "batch_restart.json", "comparison/files_compared"),
     DocNumber(README, "(images at {128} texels, 100 fit steps", R + "addon_assets.json", "settings/texture_size"),
     DocNumber(README, "(images at 128 texels, {100} fit steps", R + "addon_assets.json", "settings/fit_steps"),
     DocNumber(README, "Cycles {320} px, 32 samples", R + "addon_assets.json", "settings/render_size"),
