@@ -80,6 +80,7 @@ def configure_cycles(scene: bpy.types.Scene, resolution: int, samples: int, thre
     r.use_persistent_data = True  # the BVH is built once for all frames
     r.threads_mode = "FIXED"
     r.threads = threads
+    r.film_transparent = True  # camera rays that miss the object skip the world shader; the PNG's RGB is black there
     r.use_freestyle = False
     r.use_stamp = False
     scene.view_settings.view_transform = "AgX"
@@ -162,6 +163,7 @@ def intrinsics_pass(scene: bpy.types.Scene, samples: int) -> None:
     cy.use_adaptive_sampling = False
     cy.use_denoising = False
     cy.max_bounces = 0
+    scene.world = None  # no light to sample: AOVs and geometry passes are unlit
     scene.render.use_persistent_data = False  # kept data from the beauty pass would keep its film setup
 
 

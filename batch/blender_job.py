@@ -31,7 +31,7 @@ import bpy  # noqa: E402
 from batch import bl_render  # noqa: E402
 from batch.bl_scene import BadAsset  # noqa: E402
 from batch.options import (  # noqa: E402
-    DEFAULT_DENOISE_PREFILTER, DEFAULT_MAX_TRIANGLES, DENOISE_PREFILTERS, DEVICES)
+    DEFAULT_DENOISE_PREFILTER, DEFAULT_GRAPH, DEFAULT_MAX_TRIANGLES, DENOISE_PREFILTERS, DEVICES, GRAPHS)
 from richmat_addon.core.stage_clock import StageClock  # noqa: E402
 
 BAD_INPUT_EXIT = 3  # batch.pipeline.BAD_INPUT_EXIT (not imported: the orchestrator side stays bpy-free)
@@ -157,7 +157,7 @@ def parse(argv: list[str]) -> argparse.Namespace:
     r.add_argument("--denoise-prefilter", choices=DENOISE_PREFILTERS, default=DEFAULT_DENOISE_PREFILTER)
     r.add_argument("--probe", type=Path, required=True)
     r.add_argument("--aov-samples", type=int, required=True)
-    r.add_argument("--graph", choices=("osl", "native"), default="osl")
+    r.add_argument("--graph", choices=GRAPHS, default=DEFAULT_GRAPH)
     r.add_argument("--threads", type=int, default=1)
     d = sub.add_parser("device")
     d.add_argument("--work", type=Path, required=True)

@@ -26,10 +26,14 @@ DEFAULT_CLUSTER_STEP = 1 / 256
 # rendered (bench/beauty_denoise.py measures both).
 DENOISE_PREFILTERS = ("fast", "accurate")
 DEFAULT_DENOISE_PREFILTER = "fast"
-# Cycles devices (``--device``); OSL shades only on the CPU and OptiX, so another GPU renders the
-# beauty pass with the native node graph (docs/backends.md).
+# Cycles devices (``--device``); OSL shades only on the CPU and OptiX (docs/backends.md).
 DEVICES = ("CPU", "CUDA", "OPTIX", "HIP", "METAL", "ONEAPI")
 OSL_DEVICES = ("CPU", "OPTIX")
+# The beauty pass's material: the native node graph renders on every device and, on the CPU, the farm's
+# textured materials in about two thirds of OSL's time (the OSL shader reads its maps through OpenImageIO's
+# texture cache); bench/farm_cost.py measures both against an OSL reference.
+GRAPHS = ("native", "osl")
+DEFAULT_GRAPH = "native"
 # Bumped when the per-asset output format or pipeline changes meaning.
 PIPELINE_VERSION = 1
 
@@ -61,10 +65,10 @@ def build_parser() -> argparse.ArgumentParser:
     add("--device", choices=DEVICES, default="CPU",
         help="Cycles device of every render pass; a device this machine does not have fails the run at once, "
              "with the reason in the ledger (never a silent CPU fallback)")
-    add("--graph", choices=("osl", "native"), default=None,
-        help="the enhanced material the beauty pass renders: the exact OSL shader (Cycles on the CPU or OptiX) or "
-             "the native node graph (any Cycles device, docs/backends.md); intrinsics and latents are the same. "
-             "Default: osl on CPU and OPTIX, native on the other devices")
+    add("--graph", choices=GRAPHS, default=DEFAULT_GRAPH,
+        help="the enhanced material the beauty pass renders: the native node graph (any Cycles device, "
+             "docs/backends.md) or the exact OSL shader (Cycles on the CPU or OptiX only); intrinsics and latents "
+             "are the same")
     add("--aov-samples", type=int, default=8, help="samples of the intrinsics pass (anti-aliasing of the EXR maps)")
     add("--probe", type=Path, default=DEFAULT_PROBE, help="HDR light probe (equirectangular)")
     add("--decoder", type=Path, default=DEFAULT_DECODER, help="trained decoder folder "
@@ -130,7 +134,7 @@ def validate(args: argparse.Namespace) -> None:
             raise ValueError(f"--{name.replace('_', '-')} must be at least 1")
     if args.graph == "osl" and args.device not in OSL_DEVICES:
         raise ValueError(f"--graph osl renders only on {' and '.join(OSL_DEVICES)} (Cycles runs OSL nowhere "
-                         f"else): leave --graph out with --device {args.device}, and the native graph is used")
+                         f"else): leave --graph out with --device {args.device}, and the native graph is rendered")
     if not 0 < args.cluster_step <= 1:
         raise ValueError("--cluster-step must be in (0, 1]")
     if args.timeout <= 0 or args.retries < 0:
@@ -144,15 +148,10 @@ def validate(args: argparse.Namespace) -> None:
 
 def settings_of(args: argparse.Namespace) -> Settings:
     return Settings(PIPELINE_VERSION, args.frames, args.resolution, args.samples, args.adaptive_threshold,
-                    args.denoise_prefilter, args.aov_samples, args.device, beauty_graph(args.graph, args.device),
+                    args.denoise_prefilter, args.aov_samples, args.device, args.graph,
                     file_sha256(args.probe),
                     file_sha256(args.decoder / "weights.safetensors"), args.fit_steps, args.cluster_step,
                     args.max_texture, args.seed)
-
-
-def beauty_graph(graph: str | None, device: str) -> str:
-    """The graph the beauty pass renders: the one asked for, else OSL where Cycles runs it."""
-    return graph or ("osl" if device in OSL_DEVICES else "native")
 
 
 def cpu_threads(workers: int) -> int:

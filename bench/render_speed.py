@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from batch.options import DEFAULT_DENOISE_PREFILTER
+from batch.options import DEFAULT_DENOISE_PREFILTER, DEFAULT_GRAPH
 from bench.common import REPO, add_out_argument, child_env, pyplot, save_chart, write_report
 
 SHARED_MODELS = REPO.parent / "shared" / "assets" / "models"
@@ -152,10 +152,11 @@ def naive_job(argv: list[str]) -> None:
     bpy.ops.wm.open_mainfile(filepath=str(work_dir / "scene.blend"), load_ui=False, use_scripts=False)
     scene = bpy.context.scene
     prepared = json.loads((work_dir / "asset.json").read_text())
-    built = {m["name"]: dataset_material.build(work_dir / "materials" / m["folder"]) for m in prepared["materials"]}
+    built = {m["name"]: dataset_material.build(work_dir / "materials" / m["folder"], DEFAULT_GRAPH)
+             for m in prepared["materials"]}
     slots = [s for o in scene.objects for s in getattr(o, "material_slots", []) if s.material and s.material.name in built]
     names = [s.material.name for s in slots]
-    bl_render.configure_cycles(scene, int(res), int(samples), float(threshold), int(threads))
+    bl_render.configure_cycles(scene, int(res), int(samples), float(threshold), int(threads), DEFAULT_GRAPH)
     scene.render.use_persistent_data = False  # Blender's default, as in the surveyed scripts
     scene.world = bl_render.probe_world(Path(probe))
     bl_render.orbit(scene, int(frames), bl_render.start_azimuth(asset, 0))

@@ -509,7 +509,10 @@ def main() -> None:
     if missing:
         raise SystemExit(f"not installed: {', '.join(missing)}. This bench installs nothing; on Debian/Ubuntu "
                          f"run (as root):\n  {INSTALL}")
-    work = args.work or Path(tempfile.mkdtemp(prefix="richmat_slurm_"))
+    work = args.work
+    if work is None:
+        work = Path(tempfile.mkdtemp(prefix="richmat_slurm_"))
+        work.chmod(0o755)  # mkdtemp makes it 0700; munged refuses a socket below a folder others cannot search
     work.mkdir(parents=True, exist_ok=True)
     for stale in ("inputs", "outside", "slurm", "array_out", "single_out"):
         shutil.rmtree(work / stale, ignore_errors=True)
