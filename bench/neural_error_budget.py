@@ -47,6 +47,7 @@ from torch_models.generator.generate import preview_cameras
 from torch_models.generator.mesh_input import load_mesh
 from torch_models.generator.views import render_intrinsics, sample_texture
 from torch_models.neural import energy, fitting, trained
+from torch_models.neural.mlp.energy import REFIT_STEPS
 from torch_models.neural.model import NeuralModel
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.closure_form import ClosureForm
@@ -156,7 +157,7 @@ def fit_material(model: NeuralModel, folder: Path, name: str, size: int, steps: 
     else:
         start = time.perf_counter()
         z = fitting.fit_latents(model, mv.unique, steps, seed=0)
-        bounded = energy.fit_bounded(model, mv.unique, z, seed=0, steps=min(energy.REFIT_STEPS, steps))
+        bounded = energy.fit_bounded(model, mv.unique, z, seed=0, steps=min(REFIT_STEPS, steps))
         seconds = time.perf_counter() - start
         z, scale = bounded.z.detach().contiguous(), bounded.check.energy_scale().detach().contiguous()
         if key is not None:
