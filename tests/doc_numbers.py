@@ -32,6 +32,7 @@ R = "docs/reports/"
 README = "README.md"
 GENERATOR = "docs/generator.md"
 NEURAL = "docs/neural-material.md"
+BOTTLE_BUDGET = "assets/WaterBottle/probe/all/"  # neural_error_budget.json: WaterBottle under the probe
 GEN_STATE = "torch_models/generator/weights/state.json"
 GUIDANCE_PER_TYPE = "summary/4"  # generate_guidance.json's summary rows: 1, 1.5, 2, 2.5, per type
 GUIDANCE_2 = "summary/2"
@@ -224,6 +225,15 @@ ROWS: tuple[DocNumber, ...] = (
     DocNumber("docs/addon.md", "| {12.9} / 12.6 |", R + "closure_preview.json", "scenes/probe_and_sun/summary/closures/median_seconds"),
     DocNumber("docs/addon.md", "| 12.9 / {12.6} |", R + "closure_preview.json", "scenes/probe_and_sun/summary/emission/median_seconds"),
     DocNumber(NEURAL, "mean FLIP {0.055} under the probe and 0.057", R + "closure_preview.json", "scenes/probe/summary/closures/mean_flip"),
+    DocNumber(NEURAL, "({26 448} vectors fitted)", R + "neural_error_budget.json",
+              "assets/WaterBottle/materials/BottleMat/fitted_vectors"),
+    DocNumber(NEURAL, "reach {0.093} and closure", R + "neural_error_budget.json", BOTTLE_BUDGET + "terms/reach"),
+    DocNumber(NEURAL, "and closure {0.038} make", R + "neural_error_budget.json", BOTTLE_BUDGET + "terms/closure"),
+    DocNumber(NEURAL, "of the total {0.140}", R + "neural_error_budget.json", BOTTLE_BUDGET + "flip/closure"),
+    DocNumber(NEURAL, "(the noise floor {0.029})", R + "neural_error_budget.json", BOTTLE_BUDGET + "flip/noise_floor"),
+    DocNumber(NEURAL, "as shipped adds {0.003}", R + "neural_error_budget.json", BOTTLE_BUDGET + "terms/fit"),
+    DocNumber(NEURAL, "the bilinear latents {-0.001}", R + "neural_error_budget.json", BOTTLE_BUDGET + "terms/sampling"),
+    DocNumber(NEURAL, "the nearest lookup {0.008}", R + "neural_error_budget.json", BOTTLE_BUDGET + "terms/lookup"),
     DocNumber(NEURAL, "against 0.064 and {0.108} for the", R + "closure_preview.json", "scenes/probe_and_sun/summary/emission/mean_flip"),
     DocNumber("docs/addon.md", "| 0.1 s | 0.1 s | 0.1 s | 10 s | 0.1 s | 0.1 s | {0.156} | 1.1 min |",
               R + "addon_assets.json", "assets/WaterBottle/preview_flip_vs_bake"),

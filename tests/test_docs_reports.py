@@ -267,8 +267,6 @@ def test_by_hand_rows_say_so():
 # Every bench and every report is cited: what nothing current cites goes to docs/history.md.
 BENCH = REPO / "bench"
 NOT_BENCHES = {"__init__.py", "common.py"}
-# its section of docs/neural-material.md is being written on another branch: drop it from here when that lands
-CITATION_PENDING = {"neural_error_budget.py"}
 
 
 def uncited(names: dict[str, tuple[str, ...]], text: str) -> list[str]:
@@ -286,7 +284,7 @@ def test_every_bench_and_report_is_cited():
     """history.md names retired ones by ``git show``: its mentions do not count."""
     text = "\n".join(doc.read_text() for doc in documents() if doc.name != "history.md")
     benches = {p.name: bench_spellings(p) for p in sorted(BENCH.glob("*.py"))
-               if p.name not in NOT_BENCHES | CITATION_PENDING and not p.name.startswith("test_")}
+               if p.name not in NOT_BENCHES and not p.name.startswith("test_")}
     reports = {p.name: (p.name,) for p in sorted(REPORTS.iterdir()) if p.is_file()}
     assert len(benches) >= 20 and len(reports) >= 40, (len(benches), len(reports))
     missing = uncited(benches, text) + uncited(reports, text)
