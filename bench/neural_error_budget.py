@@ -346,7 +346,8 @@ def chart(report: dict, path: Path) -> None:
         ax.set_xticks(x, [r[0] for r in rows], fontsize=6, rotation=60, ha="right")
         ax.set_ylabel("mean FLIP vs the analytic material")
         ax.set_title(f"where the neural preview's error comes from (torch, G-buffer); scene: {scene}")
-        ax.legend(fontsize=7, ncol=4)
+        ax.set_ylim(top=1.45 * max(max(bottom_pos), 0.05))  # room for the legend above the bars
+        ax.legend(fontsize=7, ncol=4, loc="upper right")
     save_chart(fig, path)
 
 
