@@ -15,7 +15,7 @@ and step), and the torch renderer draws the ball of
 in two scenes (the probe; the probe and a sun). The chart sets each against the cost of
 its closure form's gates per shading point in torch.
 
-    python -m bench.view_gates --candidate RUN_FOLDER [--per-type 4] [--resolution 48] [--spp 64]
+    python -m bench.view_gates [--candidate RUN_FOLDER] [--per-type 4] [--resolution 48] [--spp 64]
         [--out docs/reports/view_gates.json]
 """
 from __future__ import annotations
@@ -77,7 +77,8 @@ def gate_seconds(model: NeuralModel, points: int = 1 << 15) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--candidate", type=Path, required=True, help="the view-gated decoder's run folder")
+    parser.add_argument("--candidate", type=Path, default=trained.SHIPPED / "view_gates",
+                        help="the view-gated decoder's run folder (default: the one kept beside the shipped decoder)")
     parser.add_argument("--per-type", type=int, default=4)
     parser.add_argument("--per-vector", type=int, default=2048, help="the fit's samples per vector and step")
     parser.add_argument("--resolution", type=int, default=48)
