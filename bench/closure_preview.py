@@ -43,14 +43,12 @@ from richmat_addon.core.neural_osl import neural_osl_source
 from richmat_addon.core.tensor_file import read_safetensors
 from torch_models.neural import trained
 from torch_models.neural.bsdf import NeuralBsdf
-from torch_models.neural.closure_form import ClosureForm
-from torch_models.neural.evaluate import DEFAULT_PROBE, BallSetup
+from torch_models.neural.closure_form import closure_model
+from torch_models.neural.evaluate import DEFAULT_PROBE, KEY_LIGHT, SCENES, BallSetup
 from torch_models.render.ball import Sun, render_ball
 from torch_models.render.flip import flip_map, mean_flip
 from torch_models.render.tonemap import agx
 
-SUN = Sun((0.5773, -0.5773, 0.5773), 3.0)  # from the camera's upper left; about 3x the probe's irradiance
-SCENES = {"probe": None, "probe_and_sun": SUN}
 PREVIEW_SHADER_FILES = ("neural_osl.py", "schema.py", "tensor_file.py")
 
 CYCLES = """
@@ -100,7 +98,7 @@ def emission_shader(commit: str, tensors: dict[str, np.ndarray], tmp: Path) -> s
 
 def torch_images(model: trained.NeuralModel, case: dict, setup: BallSetup, sun: Sun | None) -> dict[str, np.ndarray]:
     """AgX images of the full decoder (seeds 0 and 1) and of its closure form (seed 0)."""
-    closure = dataclasses.replace(model, decoder=ClosureForm(model.decoder))
+    closure = closure_model(model)
     out = {}
     for name, m, seed in (("full", model, 0), ("full_seed1", model, 1), ("closure_form", closure, 0)):
         bsdf = NeuralBsdf(m, torch.tensor([case["z"]]), torch.tensor([case["base"]]), 1.0)
@@ -228,7 +226,7 @@ def main() -> None:
             z = model.encoder(torch.from_numpy(case.vector())[None])
         job_cases.append({"name": case.name, "z": z[0].tolist(), "base": list(case.base_color)})
     report: dict = {"resolution": args.resolution, "torch_spp": args.spp, "cycles_spp": args.cycles_spp,
-                    "emission_commit": args.emission_commit, "sun": dataclasses.asdict(SUN),
+                    "emission_commit": args.emission_commit, "sun": dataclasses.asdict(KEY_LIGHT),
                     "flip_convention": FLIP_CONVENTION, "scenes": {}}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:

@@ -50,16 +50,14 @@ from torch_models.neural import energy, fitting, trained
 from torch_models.neural.mlp.energy import REFIT_STEPS
 from torch_models.neural.model import NeuralModel
 from torch_models.neural.bsdf import NeuralBsdf
-from torch_models.neural.closure_form import ClosureForm
-from torch_models.neural.evaluate import DEFAULT_PROBE
+from torch_models.neural.closure_form import closure_model
+from torch_models.neural.evaluate import DEFAULT_PROBE, KEY_LIGHT, SCENES
 from torch_models.render.ball import Sun, shade_gbuffer
 from torch_models.render.envmap import EnvMap
 from torch_models.render.flip import flip_map
 from torch_models.render.tonemap import agx
 
 ASSETS = ("WaterBottle", "CesiumMilkTruck", "BoomBox", "SheenCloth", "FlightHelmet")
-SUN = Sun((0.5773, -0.5773, 0.5773), 3.0)  # bench/closure_preview.py's key light
-SCENES = {"probe": None, "probe_and_sun": SUN}
 CHAIN = ("reference", "lookup", "reach", "fit", "sampling", "closure")  # each render swaps one thing
 TERMS = {"lookup": "nearest parameter lookup", "reach": "decoder reach (oracle fit)",
          "fit": "fit as shipped", "sampling": "bilinear latents", "closure": "closure form (gates held)"}
@@ -204,7 +202,7 @@ def chain_bsdfs(model: NeuralModel, m: Material, uv: torch.Tensor, z_oracle: tor
         zt, st = z[per_texel], m.scale[per_texel][:, None]
         return NeuralBsdf(decoder_model, taps.gather(zt), base, taps.gather(st))
 
-    closure = dataclasses.replace(model, decoder=ClosureForm(model.decoder))
+    closure = closure_model(model)
     return {"reference": LayeredBsdf(params_from_vectors(bilinear.gather(m.texels)), base),
             "lookup": LayeredBsdf(params_from_vectors(nearest.gather(m.texels)), base),
             "reach": neural(z_oracle, nearest, model),
@@ -392,7 +390,7 @@ def main() -> None:
     env = EnvMap.load(DEFAULT_PROBE)
     report: dict = {"settings": {**{k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()
                                     if k != "out"},
-                                 "cluster_step": QUANT, "sun": dataclasses.asdict(SUN)},
+                                 "cluster_step": QUANT, "sun": dataclasses.asdict(KEY_LIGHT)},
                     "flip_convention": FLIP_CONVENTION, "chain": {k: TERMS.get(k, "") for k in CHAIN},
                     "assets": {}}
     images = {}

@@ -33,20 +33,14 @@ from support.agreement_cases import cases
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
 from torch_models.neural import fitting, trained
 from torch_models.neural.bsdf import NeuralBsdf
-from torch_models.neural.closure_form import ClosureForm
-from torch_models.neural.evaluate import BallSetup
+from torch_models.neural.closure_form import ClosureForm, closure_model
+from torch_models.neural.evaluate import KEY_LIGHT, SCENES, BallSetup
 from torch_models.neural.model import NeuralModel
 from torch_models.render.ball import Sun, render_ball
 from torch_models.render.flip import mean_flip
 from torch_models.render.tonemap import agx
 
-SUN = Sun((0.5773, -0.5773, 0.5773), 3.0)  # bench/closure_preview.py's key light
-SCENES = {"probe": None, "probe_and_sun": SUN}
 FIT_STEPS = 300  # the add-on's Fit Steps
-
-
-def closure_model(model: NeuralModel) -> NeuralModel:
-    return dataclasses.replace(model, decoder=ClosureForm(model.decoder))
 
 
 def fitted(model: NeuralModel, vectors: np.ndarray, per_vector: int) -> tuple[torch.Tensor, float]:
@@ -123,7 +117,7 @@ def main() -> None:
               "gate_seconds_per_million_points": {"shipped_closure_form": gate_seconds(shipped),
                                                   "view_gated": gate_seconds(candidate)},
               "settings": {"per_type": args.per_type, "per_vector": args.per_vector, "fit_steps": FIT_STEPS,
-                           "resolution": args.resolution, "spp": args.spp, "sun": dataclasses.asdict(SUN)},
+                           "resolution": args.resolution, "spp": args.spp, "sun": dataclasses.asdict(KEY_LIGHT)},
               "flip_convention": FLIP_CONVENTION, "wall_seconds": time.perf_counter() - start}
     write_report(args.out, report, [trained.SHIPPED, args.candidate])
     chart(report, args.out.with_suffix(".png"))

@@ -25,6 +25,7 @@ Rules (``RULES``):
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import torch
@@ -33,6 +34,7 @@ from torch import Tensor, nn
 from ..brdf.ggx import ggx_sample
 from ..brdf.lobes import sheen_sample
 from .hybrid import HybridDecoder, Lobes
+from .model import NeuralModel
 
 RULES = ("dominant", "mean")
 
@@ -99,3 +101,8 @@ class ClosureForm(nn.Module):
         lobes = self.decoder.head_at(latent, wi)
         f = self.decoder.lobe_sum(lobes, latent, wi, wo, gates=self.gates_at(latent, wi, lobes=lobes))
         return f, lobes.weights[:, self.t_slot:self.t_slot + 1], lobes.r
+
+
+def closure_model(model: NeuralModel) -> NeuralModel:
+    """``model`` with its decoder replaced by its closure form (the mean rule): what the preview renders."""
+    return dataclasses.replace(model, decoder=ClosureForm(model.decoder))

@@ -18,7 +18,7 @@ from torch import Tensor
 
 from richmat_addon.core.preview import PreviewScene
 from ..brdf.model import LayeredBsdf, params_from_vectors
-from ..render.ball import render_ball
+from ..render.ball import Sun, render_ball
 from ..render.envmap import EnvMap
 from ..render.flip import flip_map
 from ..render.tonemap import agx
@@ -30,6 +30,9 @@ from .fitting import fit_latents
 from .model import NeuralModel
 
 DEFAULT_PROBE = Path(__file__).resolve().parents[1] / "data" / "studio_small_03_512.hdr"
+# The benches' artist scene: a key light from the camera's upper left, about 3x the probe's irradiance.
+KEY_LIGHT = Sun((0.5773, -0.5773, 0.5773), 3.0)
+SCENES: dict[str, Sun | None] = {"probe": None, "probe_and_sun": KEY_LIGHT}  # the two scenes the preview is judged in
 
 
 @dataclass(frozen=True)
