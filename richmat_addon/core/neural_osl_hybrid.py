@@ -14,17 +14,27 @@ light transport (every lamp, shadows, indirect light, its importance sampling):
   as the torch lobes (``core/sheen_table.py``);
 * the base: ``diffuse()`` weighted T c.
 
-A closure weight cannot depend on the light direction, but the gates do (they
-read both directions). Each gate is replaced by its mean over directions drawn
-from its own lobe (``torch_models/neural/closure_form.py``, rule ``"mean"``):
-``gate_samples`` draws per lobe and shading sample, hashed from the shading
-position, so Cycles' samples converge to that mean. The torch renderer renders
-the same closure form, and bench/closure_form.py measures what the constant
-gates cost against the full decoder.
+A closure weight cannot depend on the light direction. The gates' input width
+says which of the two gate kinds the weights hold (``GATES``); only how the
+shader gets its gates differs:
+
+* gates of both directions (16 inputs, the shipped decoder): each gate is
+  replaced by its mean over directions drawn from its own lobe
+  (``torch_models/neural/closure_form.py``, rule ``"mean"``): ``gate_samples``
+  draws per lobe and shading sample, hashed from the shading position, so
+  Cycles' samples converge to that mean. bench/closure_preview.py measures
+  what the constant gates cost against the full decoder;
+* view gates (9 inputs: the latent and the view cosine's features, the head's
+  own input; ``HybridDecoder(view_gates=True)``): evaluated once per shading
+  point at wi, so the closures are the decoder exactly.
+
+The torch renderer renders the same closure form (``ClosureForm``).
 """
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from string import Template
 
 import numpy as np
 
@@ -40,7 +50,7 @@ SHEEN_DROP = 1e-5  # brdf.lobes._SHEEN_DROP: Cycles drops a sheen closure whose 
 # s: alphas [0, K), Schlick F0s [F0S, F0S + 3K), diffuse colour [DIFFUSE, +3), with a sheen its roughness
 # [SHEEN_R] and colour [SHEEN_R + 1, +3), slot weights [WEIGHTS, +K+3+S) (the GGX lobes, diffuse, [sheen,] T,
 # absorbed) (S = SHEEN, 0 or 1)
-_HYBRID = r"""
+_SETUP = r"""
 float pow5(float x) { return x * x * x * x * x; }
 
 // the head at (z, wi): lobes and slot weights
@@ -70,7 +80,10 @@ void setup(float z[6], vector wi, output float s[STATE])
         s[i] /= total;
 }
 
-#if SHEEN
+"""
+
+# the gates of a decoder whose gate network reads (latent, wi, wo, h, wi.h): each held at its lobe mean
+_PAIR_GATES = r"""#if SHEEN
 vector wi_tangent(vector wi)  // frame.tangent_frame: wi's tangential direction, x when wi is the normal
 {
     float len = hypot(wi[0], wi[1]);
@@ -137,12 +150,44 @@ void mean_gates(float z[6], float s[STATE], vector wi, point p, int samples, out
     }
 }
 
-shader richmat_neural(
+"""
+
+# the gates of a view-gated decoder: its gate network reads the head's input (setup), so they are exact
+_VIEW_GATES = r"""// the gates at (z, wi), once per shading point
+void view_gates(float z[6], vector wi, output color g[SLOTS])
+{
+    float c = clamp(wi[2], 0.0, 1.0);
+    float x[9] = {z[0], z[1], z[2], z[3], z[4], z[5], c, sqrt(1.0 - c * c), pow5(1.0 - c)};
+    float o[GATE_OUTPUTS];
+    gates_mlp(x, o);
+    for (int k = 0; k < SLOTS; k++)
+        g[k] = color(sigmoid(o[3 * k]), sigmoid(o[3 * k + 1]), sigmoid(o[3 * k + 2]));
+}
+
+"""
+
+
+@dataclass(frozen=True)
+class _Gates:
+    """How a shader gets its gates: its OSL functions, the shader's inputs they need, and the call that
+    fills ``g[SLOTS]``. The gate network's input width names the kind."""
+
+    functions: str
+    parameters: str
+    call: str
+
+
+GATES = {
+    16: _Gates(_PAIR_GATES, "    int gate_samples = 2,  // directions per lobe and shading sample for the gates' means\n",
+               "mean_gates(z, s, wi, P, max(gate_samples, 1), g);"),
+    9: _Gates(_VIEW_GATES, "", "view_gates(z, wi, g);"),
+}
+
+_SHADER = Template(r"""shader richmat_neural(
     vector latent_0 = 0, vector latent_1 = 0,
     color base_color = 0.8,
     float energy_scale = 1.0,
-    int gate_samples = 2,  // directions per lobe and shading sample for the gates' means
-    normal Normal = N,
+${gate_parameters}    normal Normal = N,
     output closure color BSDF = 0)
 {
     vector n, t, bt, wi;
@@ -155,7 +200,7 @@ shader richmat_neural(
     if (wi[2] <= 0)
         return;
     color g[SLOTS];
-    mean_gates(z, s, wi, P, max(gate_samples, 1), g);
+    ${gate_call}
     float cos_i = wi[2];
     for (int k = 0; k < LOBES; k++) {
         float w = energy_scale * s[WEIGHTS + k];
@@ -175,7 +220,7 @@ shader richmat_neural(
     }
 #endif
 }
-"""
+""")
 
 
 def _unit_lobes(tensors: dict[str, np.ndarray]) -> str:
@@ -200,20 +245,23 @@ def _sheen(tensors: dict[str, np.ndarray]) -> str:
 
 
 def source(tensors: dict[str, np.ndarray]) -> str:
-    """The hybrid kind's shader: head (9 -> 5K + 7 [+ 5]) and gates (16 -> 3 slots) in OSL."""
+    """The hybrid kind's shader: head (9 -> 5K + 7 [+ 5]) and gates (16 or 9 -> 3 per slot) in OSL."""
     head, gates = linear_layers(tensors, "decoder.head"), linear_layers(tensors, "decoder.gates")
     sheen = int("decoder.sheen_ltc" in tensors)
     k = (head[-1][0].shape[0] - 7 - 5 * sheen) // 5
     if (head[0][0].shape[1] != 9 or head[-1][0].shape[0] != 5 * k + 7 + 5 * sheen or k < 1
-            or gates[0][0].shape[1] != 16 or gates[-1][0].shape[0] != 3 * (k + 1 + sheen)
+            or gates[0][0].shape[1] not in GATES or gates[-1][0].shape[0] != 3 * (k + 1 + sheen)
             or "decoder.alpha_floor" not in tensors):
         raise ValueError("the weights do not match the hybrid decoder layout this shader implements "
-                         "(head 9 -> 5K + 7 [+ 5 with a sheen], gates 16 -> 3K + 3 [+ 3], alpha_floor)")
+                         "(head 9 -> 5K + 7 [+ 5 with a sheen], gates 16 or 9 -> 3K + 3 [+ 3], alpha_floor)")
+    gate = GATES[gates[0][0].shape[1]]
     weights = 4 * k + 3 + 4 * sheen
     state = weights + k + 3 + sheen  # the slot weights end the state; the head's last output (R) is unused
+    # NET_INPUTS: COMMON's direction-pair input, which only the 16-input gates read
     return (defines(NET_INPUTS=16, LOBES=k, SHEEN=sheen, SLOTS=k + 1 + sheen, HEAD_OUTPUTS=state + 1,
                     GATE_OUTPUTS=3 * (k + 1 + sheen), F0S=k, DIFFUSE=4 * k, SHEEN_R=4 * k + 3, WEIGHTS=weights,
                     STATE=state, T_SLOT=weights + k + 1 + sheen,
                     ALPHA_FLOOR=f"{float(tensors['decoder.alpha_floor']):.9g}", LOG_ALPHA_MIN=f"{LOG_ALPHA_MIN:.9g}")
             + _unit_lobes(tensors) + _sheen(tensors) + mlp_function("head_mlp", head)
-            + mlp_function("gates_mlp", gates) + COMMON + _HYBRID)
+            + mlp_function("gates_mlp", gates) + COMMON + _SETUP + gate.functions
+            + _SHADER.substitute(gate_parameters=gate.parameters, gate_call=gate.call))
