@@ -21,6 +21,10 @@ class TrainConfig:
     kind: str  # kinds.KINDS: set by each kind's config
     seed: int = 0
     pool: int = 20_000  # distinct parameter vectors drawn from the enhancement rules
+    real_assets: list[str] = field(default_factory=list)  # glTF files uplifted into the pool (real_vectors.py)
+    real_per_group: int = 2000  # vectors kept per (real asset, enhancement type)
+    real_share: float = 0.0  # share of draws from the real vectors
+    emphasis: float = 1.0  # metals and near-mirrors drawn this many times as often (real_vectors.emphasised)
     alpha_floor: float = 0.0  # GGX alphas below this are trained (and fitted) as this (data.angular_floor)
     relative_weight: float = 0.0  # decoder_loss's relative term, in training and in fitting
     t_weight: float = LOSS_WEIGHTS[1]  # decoder_loss's weight of T
@@ -62,4 +66,5 @@ class TrainConfig:
         cfg = cls.from_mapping(json.loads(path.read_text()) if values is None else values)
         if cfg.init and not Path(cfg.init).is_absolute():
             cfg.init = str((path.parent / cfg.init).resolve())
+        cfg.real_assets = [str((path.parent / a).resolve()) for a in cfg.real_assets]
         return cfg

@@ -107,10 +107,14 @@ def _uniform_hemisphere(n: int, gen: torch.Generator) -> Tensor:
     return v / v.norm(dim=-1, keepdim=True)
 
 
-def make_batch(pool: Tensor, n: int, gen: torch.Generator, index: Tensor | None = None) -> Batch:
+def make_batch(pool: Tensor, n: int, gen: torch.Generator, index: Tensor | None = None,
+               weights: Tensor | None = None) -> Batch:
     """A batch of n (material, wi, wo) samples from a pool of parameter vectors: rows drawn at
-    random, or the rows ``index`` (n of them) when a caller needs set counts per vector."""
-    if index is None:
+    random (uniformly, or with probabilities ``weights``), or the rows ``index`` (n of them) when
+    a caller needs set counts per vector."""
+    if index is None and weights is not None:
+        index = torch.multinomial(weights, n, replacement=True, generator=gen)
+    elif index is None:
         index = torch.randint(len(pool), (n,), generator=gen)
     vectors = pool[index]
     wi = cosine_hemisphere(n, gen)

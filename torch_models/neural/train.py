@@ -34,7 +34,7 @@ from safetensors.torch import save_file
 from torch import Tensor, nn
 
 from ..distributed import data_parallel, placement
-from . import kinds
+from . import kinds, real_vectors
 from .data import Batch, angular_floor, make_batch, parameter_vectors
 from .config import TrainConfig
 from .decoder_kind import Penalty
@@ -94,7 +94,16 @@ class Trainer:
         self.step = 0
         self.skipped = 0  # batches skipped since the last checkpoint (non-finite gradients)
         self.gen = torch.Generator().manual_seed(self._data_seed(0))
-        self.pool = angular_floor(parameter_vectors(cfg.pool, np.random.default_rng(cfg.seed)), cfg.alpha_floor)
+        vectors = parameter_vectors(cfg.pool, np.random.default_rng(cfg.seed))
+        self.draw_weights: Tensor | None = None
+        if cfg.real_assets or cfg.emphasis != 1.0:
+            if cfg.real_assets:
+                real = real_vectors.load_or_build([Path(a) for a in cfg.real_assets], cfg.real_per_group,
+                                                  out / "real_vectors.npz")
+                vectors = np.concatenate([vectors, real])
+            self.draw_weights = torch.from_numpy(real_vectors.sampling_weights(vectors, cfg.pool, cfg.real_share,
+                                                                          cfg.emphasis))
+        self.pool = angular_floor(vectors, cfg.alpha_floor)
         self.buffer = [self._new_batch() for _ in range(cfg.buffer_batches)]
         if cfg.init:
             self._load(Path(cfg.init) / "weights.safetensors", cfg.init_networks)
@@ -108,7 +117,7 @@ class Trainer:
         return (self.cfg.seed + step) * 1024 + self.where.rank
 
     def _new_batch(self) -> Batch:
-        return make_batch(self.pool, self.cfg.batch, self.gen).to(self.where.device)
+        return make_batch(self.pool, self.cfg.batch, self.gen, weights=self.draw_weights).to(self.where.device)
 
     def buffered_batch(self) -> Batch:
         """A random batch of the buffer."""
