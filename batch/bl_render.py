@@ -206,13 +206,21 @@ def compositor_outputs(scene: bpy.types.Scene, passes_dir: Path) -> None:
         tree.links.new(layers.outputs[name], files.inputs[name])
 
 
-def beauty_output(scene: bpy.types.Scene, rgb_dir: Path) -> None:
+def beauty_output(scene: bpy.types.Scene, rgb_dir: Path, file_format: str = "PNG") -> None:
     scene.render.filepath = str(rgb_dir) + "/"
     settings = scene.render.image_settings
     settings.media_type = "IMAGE"
-    settings.file_format = "PNG"
+    settings.file_format = file_format
     settings.color_mode = "RGB"
-    settings.color_depth = "8"
+    if file_format == "PNG":
+        settings.color_depth = "8"
+
+
+def scratch_output(scene: bpy.types.Scene, folder: Path) -> None:
+    """Where a pass whose own image is not wanted writes it (an animation render writes every frame): BMP with
+    the Standard view, the cheapest to write. The compositor's EXRs hold scene values, which no view changes."""
+    beauty_output(scene, folder, "BMP")
+    scene.view_settings.view_transform = "Standard"
 
 
 def camera_record(scene: bpy.types.Scene, cam: bpy.types.Object, frames: int) -> dict[str, Any]:

@@ -122,7 +122,7 @@ def render(args: argparse.Namespace) -> None:
         bl_render.add_aovs(intrinsics.view_layers[0])
         bl_render.compositor_outputs(intrinsics, args.work / "passes")
         scratch = args.work / "scratch"
-        bl_render.beauty_output(intrinsics, scratch)  # this pass's own beauty is not wanted
+        bl_render.scratch_output(intrinsics, scratch)
         bpy.ops.render.render(animation=True, scene=intrinsics.name)
         shutil.rmtree(scratch)
     with clock.stage("video"):
