@@ -76,16 +76,21 @@ def default_commands(blender: str | None, python: str | None) -> Commands:
     return Commands(blender_cmd, python_cmd or sys.executable)
 
 
+# Looks torch up without importing it: the import costs 2 CPU s, as much again as the fit child's own.
+FIND_TORCH = "import importlib.util, sys; importlib.util.find_spec('torch') or sys.exit(\"No module named 'torch'\")"
+
+
 def check_fit_python(python: str) -> None:
-    """Refuse a fit interpreter that cannot import torch before any asset is started."""
+    """Refuse a fit interpreter without torch before any asset is started. A torch that is there but does
+    not import fails each asset's fit instead, with its traceback in the ledger."""
     try:
-        proc = subprocess.run([python, "-c", "import torch"], capture_output=True, text=True, timeout=600)
+        proc = subprocess.run([python, "-c", FIND_TORCH], capture_output=True, text=True, timeout=600)
     except OSError as exc:
         raise ValueError(f"the fit's Python {python} cannot be run ({exc.strerror}); the fit step needs a Python "
                          f"with torch, such as {VENV_PYTHON} (`make env` makes it)") from None
     if proc.returncode != 0:
         last = (proc.stderr.strip().splitlines() or [f"exit code {proc.returncode}"])[-1]
-        raise ValueError(f"the fit's Python {python}: `import torch` fails ({last}); the fit step needs a Python "
+        raise ValueError(f"the fit's Python {python} has no torch ({last}); the fit step needs a Python "
                          f"with torch, such as {VENV_PYTHON} (`make env` makes it)")
 
 

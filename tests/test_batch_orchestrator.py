@@ -61,7 +61,7 @@ else:
 FAKE_PYTHON = '''#!{python}
 import json, sys
 from pathlib import Path
-if sys.argv[1] == "-c":  # the orchestrator's check that this Python imports torch
+if sys.argv[1] == "-c":  # the orchestrator's check that this Python has torch
     sys.exit(0)
 opts = dict(zip(sys.argv[2::2], sys.argv[3::2]))
 (Path(opts["--work"]) / "fit.json").write_text(json.dumps({{"materials": {{}}}}))
@@ -353,7 +353,7 @@ def test_fit_python_is_the_checkouts_venv_under_blender_or_a_clear_error(
     bare = tmp_path / "bare-python"
     bare.write_text(f"#!/bin/sh\nexec {sys.executable} -I -S \"$@\"\n")
     bare.chmod(0o755)
-    with pytest.raises(ValueError, match="`import torch` fails.*No module named 'torch'"):
+    with pytest.raises(ValueError, match="has no torch.*No module named 'torch'"):
         pipeline.check_fit_python(str(bare))
     with pytest.raises(ValueError, match="cannot be run"):
         pipeline.check_fit_python(str(tmp_path / "no-such-python"))
