@@ -155,5 +155,7 @@ def settings_of(args: argparse.Namespace) -> Settings:
 
 
 def cpu_threads(workers: int) -> int:
-    """Render threads per job so that K jobs share the machine's cores."""
-    return max(1, (os.cpu_count() or 1) // workers)
+    """Render threads per job so that K jobs share the cores this process may run on: a SLURM task's
+    ``--cpus-per-task`` (its affinity mask), not every core of the node."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return max(1, cores // workers)

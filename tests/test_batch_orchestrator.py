@@ -21,7 +21,7 @@ import pytest
 from batch import ledger, publish, runner
 from batch.assets import asset_id, collect
 from batch.orchestrator import main, run
-from batch.options import build_parser
+from batch.options import build_parser, cpu_threads
 from batch.pipeline import Commands
 from batch.sharding import Shard, parse_shard, shard_from_environment, shard_of
 
@@ -140,6 +140,13 @@ def test_slurm_variables_pick_the_shard(tmp_path: Path, fakes: Commands, decoder
 
 
 # --- names ------------------------------------------------------------------------------------------
+
+def test_render_threads_split_the_cores_the_task_may_use_not_the_node(monkeypatch: pytest.MonkeyPatch) -> None:
+    # a SLURM task with --cpus-per-task=16 on a 64-core node: its affinity mask holds 16 cores
+    monkeypatch.setattr(os, "cpu_count", lambda: 64)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(16)), raising=False)
+    assert [cpu_threads(k) for k in (1, 2, 3, 32)] == [16, 8, 5, 1]
+
 
 def test_hostile_names_stay_inside_the_output_folder(tmp_path: Path) -> None:
     for key in ("../../etc/passwd", "a b/ünï côde.glb", "..", "CON.glb", "x/\x00y.glb", "/abs/path.obj"):
