@@ -9,9 +9,10 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
+
+from .cores import allowed_cores
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
@@ -155,7 +156,5 @@ def settings_of(args: argparse.Namespace) -> Settings:
 
 
 def cpu_threads(workers: int) -> int:
-    """Render threads per job so that K jobs share the cores this process may run on: a SLURM task's
-    ``--cpus-per-task`` (its affinity mask), not every core of the node."""
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    return max(1, cores // workers)
+    """Render threads per job so that K jobs share the cores this process may run on (``cores.allowed_cores``)."""
+    return max(1, len(allowed_cores()) // workers)

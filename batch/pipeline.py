@@ -26,6 +26,7 @@ from richmat_addon.core.enhancement_plan import asset_type
 
 from . import publish, runner
 from .assets import Asset
+from .cores import CoreShares
 from .options import REPO, Settings, cpu_threads, file_sha256
 
 BAD_INPUT_EXIT = 3
@@ -108,6 +109,7 @@ class Job:
     workers: int
     max_triangles: int  # not in the settings: it decides which assets are refused, not what one's output is
     commands: Commands
+    cores: CoreShares = field(default_factory=lambda: CoreShares(1))  # one share per worker
 
 
 @dataclass
@@ -173,11 +175,11 @@ def _attempt(asset: Asset, job: Job) -> tuple[str, str, dict[str, Any], dict[str
     work = publish.fresh_partial(job.output, asset.id)
     deadline = time.monotonic() + job.timeout
     timings: dict[str, float] = {}
-    with tempfile.TemporaryDirectory(prefix="richmat-blender-") as home:
+    with tempfile.TemporaryDirectory(prefix="richmat-blender-") as home, job.cores.lend() as cores:
         env = _child_env(Path(home), cpu_threads(job.workers))
         for stage, cmd in _stage_commands(asset, job, work):
             left = deadline - time.monotonic()
-            out = runner.run(cmd, max(left, 0.001), work / "logs" / stage, env=env, cwd=work)
+            out = runner.run(cmd, max(left, 0.001), work / "logs" / stage, env=env, cwd=work, cores=cores)
             timings[stage] = round(out.seconds, 3)
             info = {"stage": stage, "exit_code": out.exit_code, "signal": out.signal,
                     "timed_out": out.timed_out, "stderr_tail": out.stderr_tail}

@@ -20,6 +20,7 @@ import pytest
 
 from batch import ledger, publish, runner
 from batch.assets import asset_id, collect
+from batch.cores import CoreShares, allowed_cores
 from batch.orchestrator import main, run
 from batch.options import build_parser, cpu_threads
 from batch.pipeline import Commands
@@ -146,6 +147,23 @@ def test_render_threads_split_the_cores_the_task_may_use_not_the_node(monkeypatc
     monkeypatch.setattr(os, "cpu_count", lambda: 64)
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(16)), raising=False)
     assert [cpu_threads(k) for k in (1, 2, 3, 32)] == [16, 8, 5, 1]
+
+
+def test_each_worker_lends_its_children_its_own_cores() -> None:
+    shares = CoreShares(2, cores=[0, 1, 2, 3, 4])
+    with shares.lend() as first, shares.lend() as second:
+        assert {first, second} == {frozenset({0, 1}), frozenset({2, 3})}
+    with CoreShares(1, cores=[0, 1]).lend() as one, CoreShares(3, cores=[0, 1]).lend() as crowded:
+        assert one is None and crowded is None  # one worker, or more workers than cores: every core
+
+
+def test_a_child_runs_on_the_cores_it_is_lent(tmp_path: Path) -> None:
+    core = allowed_cores()[-1]
+    show = [sys.executable, "-c", "import os; print(sorted(os.sched_getaffinity(0)))"]
+    assert runner.run(show, 60, tmp_path / "lent", cores=frozenset({core})).ok
+    assert runner.run(show, 60, tmp_path / "all").ok
+    assert (tmp_path / "lent.out").read_text().strip() == f"[{core}]"
+    assert (tmp_path / "all.out").read_text().strip() == str(allowed_cores())
 
 
 def test_hostile_names_stay_inside_the_output_folder(tmp_path: Path) -> None:
