@@ -83,7 +83,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="assets whose meshes have more triangles are refused with the count (a glTF before it is imported)")
     add("--shard", default=None, help="I/N: render only the assets of shard I of N (stable hash split); "
                                       "default: SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT when set, else 0/1")
-    add("--workers", type=int, default=1, help="assets rendered at once (CPU threads are split between them)")
+    add("--workers", type=int, default=1, help="assets rendered at once, each on its own share of the cores")
     add("--timeout", type=float, default=1800.0, help="seconds per asset (all stages of one attempt) before the running process group is killed")
     add("--retries", type=int, default=1, help="extra attempts after a crash or timeout (bad input is not retried)")
     add("--seed", type=int, default=0, help="global seed: enhancement types and parameters, camera start angle")
