@@ -155,16 +155,25 @@ def orbit(scene: bpy.types.Scene, frames: int, azimuth0: float) -> bpy.types.Obj
     return cam
 
 
-def intrinsics_pass(scene: bpy.types.Scene, samples: int) -> None:
-    """Switch the scene to the cheap SVM pass: AOVs and geometry passes only need primary rays."""
-    cy = scene.cycles
+def intrinsics_scene(scene: bpy.types.Scene, samples: int) -> bpy.types.Scene:
+    """A copy of ``scene`` (the same objects, camera and orbit) for the cheap SVM pass: AOVs and geometry passes
+    only need primary rays, and the maps are unlit, so no world, no bounces, no denoising.
+
+    Its own scene so that Cycles keeps its data across the orbit: kept data belongs to a scene's renderer, and
+    in the beauty's scene it would keep the beauty's film. Without it every frame re-syncs the scene (builds
+    the BVH, loads every texture) again. The beauty's kept data is freed first."""
+    scene.render.use_persistent_data = False  # frees the beauty's kept render data (Blender does so on this switch)
+    copy = scene.copy()
+    copy.name = "richmat_intrinsics"
+    cy = copy.cycles
     cy.shading_system = False
     cy.samples = samples
     cy.use_adaptive_sampling = False
     cy.use_denoising = False
     cy.max_bounces = 0
-    scene.world = None  # no light to sample: AOVs and geometry passes are unlit
-    scene.render.use_persistent_data = False  # kept data from the beauty pass would keep its film setup
+    copy.world = None  # no light to sample: AOVs and geometry passes are unlit
+    copy.render.use_persistent_data = True
+    return copy
 
 
 def add_aovs(view_layer: bpy.types.ViewLayer) -> None:
@@ -180,6 +189,7 @@ def compositor_outputs(scene: bpy.types.Scene, passes_dir: Path) -> None:
     tree = bpy.data.node_groups.new("richmat_outputs", "CompositorNodeTree")
     scene.compositing_node_group = tree
     layers = tree.nodes.new("CompositorNodeRLayers")
+    layers.scene = scene  # else the context's scene, whose view layer has no such passes
     tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
     group_out = tree.nodes.new("NodeGroupOutput")
     tree.links.new(layers.outputs["Image"], group_out.inputs[0])
@@ -196,13 +206,21 @@ def compositor_outputs(scene: bpy.types.Scene, passes_dir: Path) -> None:
         tree.links.new(layers.outputs[name], files.inputs[name])
 
 
-def beauty_output(scene: bpy.types.Scene, rgb_dir: Path) -> None:
+def beauty_output(scene: bpy.types.Scene, rgb_dir: Path, file_format: str = "PNG") -> None:
     scene.render.filepath = str(rgb_dir) + "/"
     settings = scene.render.image_settings
     settings.media_type = "IMAGE"
-    settings.file_format = "PNG"
+    settings.file_format = file_format
     settings.color_mode = "RGB"
-    settings.color_depth = "8"
+    if file_format == "PNG":
+        settings.color_depth = "8"
+
+
+def scratch_output(scene: bpy.types.Scene, folder: Path) -> None:
+    """Where a pass whose own image is not wanted writes it (an animation render writes every frame): BMP with
+    the Standard view, the cheapest to write. The compositor's EXRs hold scene values, which no view changes."""
+    beauty_output(scene, folder, "BMP")
+    scene.view_settings.view_transform = "Standard"
 
 
 def camera_record(scene: bpy.types.Scene, cam: bpy.types.Object, frames: int) -> dict[str, Any]:
@@ -222,16 +240,15 @@ def camera_record(scene: bpy.types.Scene, cam: bpy.types.Object, frames: int) ->
     return record
 
 
-def encode_video(frames_dir: Path, frames: int, fps: int, out: Path) -> None:
-    """The beauty PNGs as an H.264 MP4 with Blender's own ffmpeg (a sequencer scene)."""
+def encode_video(frames_dir: Path, frames: int, fps: int, out: Path, size: tuple[int, int]) -> None:
+    """The beauty PNGs (``size`` pixels) as an H.264 MP4 with Blender's own ffmpeg (a sequencer scene)."""
     scene = bpy.data.scenes.new("richmat_video")
     first = sorted(frames_dir.glob("*.png"))[0]
     editor = scene.sequence_editor_create()
     strip = editor.strips.new_image("frames", str(first), 1, 1)
     for path in sorted(frames_dir.glob("*.png"))[1:]:
         strip.elements.append(path.name)
-    src = bpy.data.scenes[0].render
-    scene.render.resolution_x, scene.render.resolution_y = src.resolution_x, src.resolution_y
+    scene.render.resolution_x, scene.render.resolution_y = size
     scene.render.resolution_percentage = 100
     scene.render.fps = fps
     scene.frame_start, scene.frame_end = 1, frames

@@ -118,17 +118,18 @@ def render(args: argparse.Namespace) -> None:
     with clock.stage("intrinsics"):
         for slot, name in zip(slots, originals):
             slot.material = built[name][1]
-        bl_render.intrinsics_pass(scene, args.aov_samples)
-        bl_render.add_aovs(scene.view_layers[0])
-        bl_render.compositor_outputs(scene, args.work / "passes")
+        intrinsics = bl_render.intrinsics_scene(scene, args.aov_samples)
+        bl_render.add_aovs(intrinsics.view_layers[0])
+        bl_render.compositor_outputs(intrinsics, args.work / "passes")
         scratch = args.work / "scratch"
-        bl_render.beauty_output(scene, scratch)  # this pass's own beauty is not wanted
-        bpy.ops.render.render(animation=True, scene=scene.name)
+        bl_render.scratch_output(intrinsics, scratch)
+        bpy.ops.render.render(animation=True, scene=intrinsics.name)
         shutil.rmtree(scratch)
     with clock.stage("video"):
         cameras = bl_render.camera_record(scene, cam, args.frames)
         (args.work / "cameras.json").write_text(json.dumps(cameras, indent=1))
-        bl_render.encode_video(args.work / "rgb", args.frames, fps=8, out=args.work / "orbit.mp4")
+        bl_render.encode_video(args.work / "rgb", args.frames, fps=8, out=args.work / "orbit.mp4",
+                               size=(scene.render.resolution_x, scene.render.resolution_y))
     frames = [{"frame": i, "beauty": f"rgb/{i:04d}.png", "intrinsics": f"passes/{i:04d}.exr"}
               for i in range(args.frames)]
     record = clock.record()

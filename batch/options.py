@@ -9,9 +9,10 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
+
+from .cores import allowed_cores
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
@@ -82,7 +83,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="assets whose meshes have more triangles are refused with the count (a glTF before it is imported)")
     add("--shard", default=None, help="I/N: render only the assets of shard I of N (stable hash split); "
                                       "default: SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT when set, else 0/1")
-    add("--workers", type=int, default=1, help="assets rendered at once (CPU threads are split between them)")
+    add("--workers", type=int, default=1, help="assets rendered at once, each on its own share of the cores")
     add("--timeout", type=float, default=1800.0, help="seconds per asset (all stages of one attempt) before the running process group is killed")
     add("--retries", type=int, default=1, help="extra attempts after a crash or timeout (bad input is not retried)")
     add("--seed", type=int, default=0, help="global seed: enhancement types and parameters, camera start angle")
@@ -155,5 +156,5 @@ def settings_of(args: argparse.Namespace) -> Settings:
 
 
 def cpu_threads(workers: int) -> int:
-    """Render threads per job so that K jobs share the machine's cores."""
-    return max(1, (os.cpu_count() or 1) // workers)
+    """Render threads per job so that K jobs share the cores this process may run on (``cores.allowed_cores``)."""
+    return max(1, len(allowed_cores()) // workers)

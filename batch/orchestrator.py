@@ -20,6 +20,7 @@ from richmat_addon.core import dataset_index
 
 from . import index, options, publish, runner
 from .assets import Asset, Ignored, asset_id, scan
+from .cores import CoreShares
 from .ledger import Ledger
 from .pipeline import Commands, Job, Result, check_fit_python, default_commands, device_problem, process
 from .progress import progress
@@ -78,7 +79,7 @@ def run(args: argparse.Namespace, commands: Commands | None = None) -> int:
     output.mkdir(parents=True, exist_ok=True)
     job = Job(settings, settings_hash, output.resolve(), args.probe.resolve(), args.decoder.resolve(),
               args.timeout, args.retries, args.workers, args.max_triangles,
-              commands or default_commands(args.blender, args.python))
+              commands or default_commands(args.blender, args.python), CoreShares(args.workers))
     ledger = Ledger(job.output / LEDGER_DIR / f"shard-{shard.label}.jsonl")
     try:
         return _run(args, job, shard, ledger)

@@ -26,6 +26,7 @@ from richmat_addon.core.enhancement_plan import asset_type
 
 from . import publish, runner
 from .assets import Asset
+from .cores import CoreShares
 from .options import REPO, Settings, cpu_threads, file_sha256
 
 BAD_INPUT_EXIT = 3
@@ -76,16 +77,21 @@ def default_commands(blender: str | None, python: str | None) -> Commands:
     return Commands(blender_cmd, python_cmd or sys.executable)
 
 
+# Looks torch up without importing it: the import costs 2 CPU s, as much again as the fit child's own.
+FIND_TORCH = "import importlib.util, sys; importlib.util.find_spec('torch') or sys.exit(\"No module named 'torch'\")"
+
+
 def check_fit_python(python: str) -> None:
-    """Refuse a fit interpreter that cannot import torch before any asset is started."""
+    """Refuse a fit interpreter without torch before any asset is started. A torch that is there but does
+    not import fails each asset's fit instead, with its traceback in the ledger."""
     try:
-        proc = subprocess.run([python, "-c", "import torch"], capture_output=True, text=True, timeout=600)
+        proc = subprocess.run([python, "-c", FIND_TORCH], capture_output=True, text=True, timeout=600)
     except OSError as exc:
         raise ValueError(f"the fit's Python {python} cannot be run ({exc.strerror}); the fit step needs a Python "
                          f"with torch, such as {VENV_PYTHON} (`make env` makes it)") from None
     if proc.returncode != 0:
         last = (proc.stderr.strip().splitlines() or [f"exit code {proc.returncode}"])[-1]
-        raise ValueError(f"the fit's Python {python}: `import torch` fails ({last}); the fit step needs a Python "
+        raise ValueError(f"the fit's Python {python} has no torch ({last}); the fit step needs a Python "
                          f"with torch, such as {VENV_PYTHON} (`make env` makes it)")
 
 
@@ -103,6 +109,7 @@ class Job:
     workers: int
     max_triangles: int  # not in the settings: it decides which assets are refused, not what one's output is
     commands: Commands
+    cores: CoreShares = field(default_factory=lambda: CoreShares(1))  # one share per worker
 
 
 @dataclass
@@ -168,11 +175,11 @@ def _attempt(asset: Asset, job: Job) -> tuple[str, str, dict[str, Any], dict[str
     work = publish.fresh_partial(job.output, asset.id)
     deadline = time.monotonic() + job.timeout
     timings: dict[str, float] = {}
-    with tempfile.TemporaryDirectory(prefix="richmat-blender-") as home:
+    with tempfile.TemporaryDirectory(prefix="richmat-blender-") as home, job.cores.lend() as cores:
         env = _child_env(Path(home), cpu_threads(job.workers))
         for stage, cmd in _stage_commands(asset, job, work):
             left = deadline - time.monotonic()
-            out = runner.run(cmd, max(left, 0.001), work / "logs" / stage, env=env, cwd=work)
+            out = runner.run(cmd, max(left, 0.001), work / "logs" / stage, env=env, cwd=work, cores=cores)
             timings[stage] = round(out.seconds, 3)
             info = {"stage": stage, "exit_code": out.exit_code, "signal": out.signal,
                     "timed_out": out.timed_out, "stderr_tail": out.stderr_tail}

@@ -15,8 +15,11 @@ import sys
 import threading
 import time
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Sequence
+
+from .cores import Cores
 
 STDERR_TAIL_BYTES = 2000
 _PR_SET_PDEATHSIG = 1
@@ -46,9 +49,12 @@ class Outcome:
         return f"exit code {self.exit_code}"
 
 
-def _die_with_parent() -> None:
+def _child_setup(cores: Cores) -> None:
+    """In the child before it starts: die with this process; run on ``cores`` only."""
     if sys.platform.startswith("linux"):
         ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    if cores is not None:
+        os.sched_setaffinity(0, cores)
 
 
 def _kill_group(proc: subprocess.Popen) -> None:
@@ -67,8 +73,9 @@ def _tail(path: Path, limit: int = STDERR_TAIL_BYTES) -> str:
 
 
 def run(cmd: Sequence[str], timeout: float, log_stem: Path, env: dict[str, str] | None = None,
-        cwd: Path | None = None) -> Outcome:
-    """Run ``cmd``; stdout/stderr go to ``<log_stem>.out`` / ``.err``."""
+        cwd: Path | None = None, cores: Cores = None) -> Outcome:
+    """Run ``cmd`` on ``cores`` (None: wherever this process may run); stdout/stderr go to ``<log_stem>.out`` /
+    ``.err``."""
     if STOPPING.is_set():
         raise RuntimeError("shutting down: no new child processes")
     log_stem.parent.mkdir(parents=True, exist_ok=True)
@@ -76,7 +83,7 @@ def run(cmd: Sequence[str], timeout: float, log_stem: Path, env: dict[str, str] 
     start = time.monotonic()
     with open(log_stem.with_suffix(".out"), "wb") as out, open(err_path, "wb") as err:
         proc = subprocess.Popen(list(cmd), stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=env,
-                                cwd=cwd, start_new_session=True, preexec_fn=_die_with_parent)
+                                cwd=cwd, start_new_session=True, preexec_fn=partial(_child_setup, cores))
         with _live_lock:
             _live[proc.pid] = proc
             if STOPPING.is_set():  # kill_all ran while this child was starting

@@ -14,7 +14,9 @@
    ``REFERENCE_SAMPLES`` spp on every ``REFERENCE_STRIDE``-th frame of the orbit (the
    orbit is the same: frame i of 4 is frame 4i of 16), is the reference of both sides'
    beauty frames (mean LDR-FLIP over those frames); the intrinsics EXRs of the two
-   sides are compared value by value.
+   sides are compared value by value, layer by layer: the render's own layers must be
+   identical, the latent layers no further apart than the two sides' fitted latents (the
+   fit is not held equal: it is not part of the target).
 3. The fit at each cluster step of ``--sweep`` (none: skipped), on the farm's own
    enhanced material folders, as ``batch/fit_job.py`` runs it (read and merge, fit),
    CPU-timed here, and its accuracy: per textured material, the 32 x 32 texel crop with
@@ -76,6 +78,10 @@ REFERENCE_SAMPLES, REFERENCE_STRIDE = 128, 4
 REFERENCE = ["--graph", "osl", "--samples", str(REFERENCE_SAMPLES), "--adaptive-threshold", "0.001",
              "--frames", str(options.build_parser().get_default("frames") // REFERENCE_STRIDE), "--fit-steps", "1"]
 FLIP_TARGET = 0.005  # the after side's beauty may be at most this much further from the reference
+NOT_FIT_TARGET = 0.5  # the issue's target: everything but the fit at most this share of the before side's CPU
+# The intrinsics layers that show the fitted latents: they move with the fit (not this bench's to hold equal).
+LATENT_LAYERS = ("latent_a", "latent_b")
+HALF_STEP = 2.0 ** -10  # half float's rounding step near 1, where the latents lie: the EXRs store them as half
 PAPER = {"assets": 10_640, "gpus": 80, "hours": 22.0}  # the paper's dataset and what rendering it took
 NODE_CORES = 16
 
@@ -226,17 +232,40 @@ def beauty_flip(run: dict, reference: dict) -> float:
     return mean_flip(beauty_frames(Path(reference["folder"])), beauty_frames(Path(run["folder"]))[::REFERENCE_STRIDE])
 
 
-def intrinsics_difference(a: dict, b: dict) -> float:
-    """The largest absolute difference between two runs' intrinsics EXRs, over every frame, part and channel."""
+def intrinsics_difference(a: dict, b: dict) -> dict[str, float]:
+    """The largest absolute difference between two runs' intrinsics EXRs per layer, over every frame and channel."""
     import OpenImageIO as oiio
 
-    worst = 0.0
+    worst: dict[str, float] = {}
     for path in sorted(Path(a["folder"]).glob("passes/*.exr")):
         other = Path(b["folder"]) / "passes" / path.name
         for part in range(oiio.ImageBuf(str(path)).nsubimages):
-            x, y = (oiio.ImageBuf(str(p), part, 0).get_pixels(oiio.FLOAT) for p in (path, other))
-            worst = max(worst, float(np.abs(x - y).max()))
+            x, y = (oiio.ImageBuf(str(p), part, 0) for p in (path, other))
+            layer = x.spec().channelnames[0].split(".")[0]
+            difference = float(np.abs(x.get_pixels(oiio.FLOAT) - y.get_pixels(oiio.FLOAT)).max())
+            worst[layer] = max(worst.get(layer, 0.0), difference)
     return worst
+
+
+def latent_difference(a: dict, b: dict) -> float:
+    """The largest absolute difference between two runs' fitted latents (textures or constants): the most their
+    intrinsics' latent layers may differ by, each pixel there being a weighted mean of latent texels."""
+    import OpenImageIO as oiio
+
+    worst = 0.0
+    for record in sorted(Path(a["folder"]).glob("materials/*/neural/neural.json")):
+        other = Path(b["folder"]) / record.relative_to(a["folder"])
+        pairs = [(np.asarray(json.loads(p.read_text()).get("latent") or [0.0])) for p in (record, other)]
+        for texture in sorted(record.parent.glob("latent_*.exr")):
+            pairs += [oiio.ImageBuf(str(p)).get_pixels(oiio.FLOAT) for p in (texture, other.parent / texture.name)]
+        worst = max([worst] + [float(np.abs(x - y).max()) for x, y in zip(pairs[::2], pairs[1::2])])
+    return worst
+
+
+def intrinsics_hold(layers: dict[str, float], latents: float) -> bool:
+    """The render's own layers identical; the latent layers no further apart than the fitted latents are."""
+    return all(difference <= (latents + HALF_STEP if layer in LATENT_LAYERS else 0.0)
+               for layer, difference in layers.items())
 
 
 def cost_model(cpu_per_asset: float) -> dict:
@@ -334,10 +363,15 @@ def main() -> None:
             farms += [{"side": side, **runs[side]} for side in SIDES]
             table.append({"asset": name, **{side: stage_table(runs[side]) for side in SIDES}})
             flips = {side: beauty_flip(runs[side], runs["reference"]) for side in SIDES}
+            layers = intrinsics_difference(runs["before"], runs["after"])
+            latents = latent_difference(runs["before"], runs["after"])
             same[name] = {"beauty_flip": {**flips, "after_minus_before": flips["after"] - flips["before"]},
-                          "intrinsics_max_abs_difference": intrinsics_difference(runs["before"], runs["after"])}
+                          "intrinsics_max_abs_difference": layers, "fitted_latents_max_abs_difference": latents,
+                          "render_layers_max_abs_difference": max(v for k, v in layers.items()
+                                                                  if k not in LATENT_LAYERS),
+                          "intrinsics_hold": intrinsics_hold(layers, latents)}
             print(f"{name}: beauty FLIP before {flips['before']:.4f}, after {flips['after']:.4f}; intrinsics "
-                  f"differ by at most {same[name]['intrinsics_max_abs_difference']:.3g}", flush=True)
+                  f"differ by at most {layers} (the fitted latents by {latents:.3g})", flush=True)
     total = {side: float(np.mean([sum(r[side].values()) for r in table])) for side in SIDES}
     not_fit = {side: float(np.mean([sum(r[side].values()) - r[side]["fit"] for r in table])) for side in SIDES}
     report = {"settings": {side: next(f["settings"] for f in farms if f["side"] == side) for side in SIDES},
@@ -350,11 +384,13 @@ def main() -> None:
               "same_outputs": {"reference": f"this checkout, {' '.join(REFERENCE)}: frame i is frame "
                                             f"{REFERENCE_STRIDE}i of the sides' orbit", "flip_target": FLIP_TARGET,
                                "beauty_flip": {a: v["beauty_flip"] for a, v in same.items()},
-                               "intrinsics_max_abs_difference": {a: v["intrinsics_max_abs_difference"]
-                                                                 for a, v in same.items()},
+                               **{key: {a: v[key] for a, v in same.items()} for key in (
+                                   "intrinsics_max_abs_difference", "fitted_latents_max_abs_difference",
+                                   "render_layers_max_abs_difference", "intrinsics_hold")},
                                "holds": all(v["beauty_flip"]["after_minus_before"] <= FLIP_TARGET
-                                            for v in same.values())},
+                                            and v["intrinsics_hold"] for v in same.values())},
               "not_fit_cpu_per_asset": not_fit, "not_fit_after_over_before": not_fit["after"] / not_fit["before"],
+              "not_fit_target": NOT_FIT_TARGET,
               "crop": CROP, "farm_default_step": DEFAULT_CLUSTER_STEP,
               "sweep_mean_crop_flip": {f"1/{round(1 / s)}": float(np.mean([r["flip"] for r in fits
                                                                            if r["step"] == s and "flip" in r]))

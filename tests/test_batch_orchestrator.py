@@ -20,8 +20,9 @@ import pytest
 
 from batch import ledger, publish, runner
 from batch.assets import asset_id, collect
+from batch.cores import CoreShares, allowed_cores
 from batch.orchestrator import main, run
-from batch.options import build_parser
+from batch.options import build_parser, cpu_threads
 from batch.pipeline import Commands
 from batch.sharding import Shard, parse_shard, shard_from_environment, shard_of
 
@@ -61,7 +62,7 @@ else:
 FAKE_PYTHON = '''#!{python}
 import json, sys
 from pathlib import Path
-if sys.argv[1] == "-c":  # the orchestrator's check that this Python imports torch
+if sys.argv[1] == "-c":  # the orchestrator's check that this Python has torch
     sys.exit(0)
 opts = dict(zip(sys.argv[2::2], sys.argv[3::2]))
 (Path(opts["--work"]) / "fit.json").write_text(json.dumps({{"materials": {{}}}}))
@@ -140,6 +141,30 @@ def test_slurm_variables_pick_the_shard(tmp_path: Path, fakes: Commands, decoder
 
 
 # --- names ------------------------------------------------------------------------------------------
+
+def test_render_threads_split_the_cores_the_task_may_use_not_the_node(monkeypatch: pytest.MonkeyPatch) -> None:
+    # a SLURM task with --cpus-per-task=16 on a 64-core node: its affinity mask holds 16 cores
+    monkeypatch.setattr(os, "cpu_count", lambda: 64)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(16)), raising=False)
+    assert [cpu_threads(k) for k in (1, 2, 3, 32)] == [16, 8, 5, 1]
+
+
+def test_each_worker_lends_its_children_its_own_cores() -> None:
+    shares = CoreShares(2, cores=[0, 1, 2, 3, 4])
+    with shares.lend() as first, shares.lend() as second:
+        assert {first, second} == {frozenset({0, 1}), frozenset({2, 3})}
+    with CoreShares(1, cores=[0, 1]).lend() as one, CoreShares(3, cores=[0, 1]).lend() as crowded:
+        assert one is None and crowded is None  # one worker, or more workers than cores: every core
+
+
+def test_a_child_runs_on_the_cores_it_is_lent(tmp_path: Path) -> None:
+    core = allowed_cores()[-1]
+    show = [sys.executable, "-c", "import os; print(sorted(os.sched_getaffinity(0)))"]
+    assert runner.run(show, 60, tmp_path / "lent", cores=frozenset({core})).ok
+    assert runner.run(show, 60, tmp_path / "all").ok
+    assert (tmp_path / "lent.out").read_text().strip() == f"[{core}]"
+    assert (tmp_path / "all.out").read_text().strip() == str(allowed_cores())
+
 
 def test_hostile_names_stay_inside_the_output_folder(tmp_path: Path) -> None:
     for key in ("../../etc/passwd", "a b/ünï côde.glb", "..", "CON.glb", "x/\x00y.glb", "/abs/path.obj"):
@@ -353,7 +378,7 @@ def test_fit_python_is_the_checkouts_venv_under_blender_or_a_clear_error(
     bare = tmp_path / "bare-python"
     bare.write_text(f"#!/bin/sh\nexec {sys.executable} -I -S \"$@\"\n")
     bare.chmod(0o755)
-    with pytest.raises(ValueError, match="`import torch` fails.*No module named 'torch'"):
+    with pytest.raises(ValueError, match="has no torch.*No module named 'torch'"):
         pipeline.check_fit_python(str(bare))
     with pytest.raises(ValueError, match="cannot be run"):
         pipeline.check_fit_python(str(tmp_path / "no-such-python"))

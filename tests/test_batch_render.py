@@ -78,9 +78,12 @@ def test_tiny_batch_renders_good_assets_and_reports_bad_ones(tmp_path: Path) -> 
             assert manifest["autoexec_fail"] is True
         cams = json.loads((folder / "cameras.json").read_text())
         assert len(cams["frames"]) == 2 and cams["intrinsics"]["width"] == 32
-        assert (folder / "orbit.mp4").stat().st_size > 0
+        assert mp4_frame_size(folder / "orbit.mp4") == (32, 32)
         beauty = np.asarray(Image.open(folder / "rgb" / "0000.png"))
         assert beauty.shape == (32, 32, 3) and beauty.max() > 20 and beauty[0, 0].max() == 0  # black background
+        for frame in cams["frames"]:  # every frame's maps are seen from that frame's camera
+            frame_layers = check_intrinsics(folder / "passes" / f"{frame['frame']:04d}.exr")
+            assert np.percentile(reprojection_px(frame_layers, cams["intrinsics"], frame), 95) < 0.25, source
         layers = check_intrinsics(folder / "passes" / "0000.exr")
         if source == "trap.blend":  # one constant material: its fitted latent, negative values included
             neural = neural_folder.read(next(folder.glob("materials/*/neural"))).record
@@ -92,7 +95,25 @@ def test_tiny_batch_renders_good_assets_and_reports_bad_ones(tmp_path: Path) -> 
     assert sorted(a["record"]["source"] for a in assets) == sorted(done)
 
 
-def check_intrinsics(path: Path) -> None:
+def mp4_frame_size(path: Path) -> tuple[int, int]:
+    """Width and height of an MP4's video track: the last two 16.16 fixed-point fields of its ``tkhd`` box."""
+    data = path.read_bytes()
+    at = data.index(b"tkhd") - 4
+    box = data[at:at + int.from_bytes(data[at:at + 4], "big")]
+    return int.from_bytes(box[-8:-4], "big") >> 16, int.from_bytes(box[-4:], "big") >> 16
+
+
+def reprojection_px(layers: dict[str, np.ndarray], intrinsics: dict, frame: dict) -> np.ndarray:
+    """Pixel distance between each covered pixel's centre and its ``Position`` seen through ``frame``'s camera."""
+    rows, cols = np.nonzero(layers["coverage"][..., 0] > 0.99)
+    world = np.concatenate([layers["Position"][rows, cols, :3], np.ones((len(rows), 1))], axis=1)
+    x, y, z = (world @ np.array(frame["world_to_camera"]).T)[:, :3].T  # the camera looks down -Z, +Y up
+    u = intrinsics["cx"] + intrinsics["fx"] * x / -z
+    v = intrinsics["cy"] - intrinsics["fy"] * y / -z  # image rows go down
+    return np.hypot(u - (cols + 0.5), v - (rows + 0.5))
+
+
+def check_intrinsics(path: Path) -> dict[str, np.ndarray]:
     import OpenImageIO as oiio
 
     image = oiio.ImageInput.open(str(path))
