@@ -30,7 +30,7 @@ from batch.options import DEFAULT_GRAPH, cpu_threads
 from bench.common import REPO, add_out_argument, pyplot, run_python, save_chart, write_report
 
 MODELS = REPO.parent / "shared" / "assets" / "models"
-SAMPLES = (1, 2, 4, 8)
+SAMPLES = (1, 2, 4, 6, 8)
 REFERENCE = 64
 DEFAULT = options.build_parser().get_default("aov_samples")
 RESOLUTION = options.build_parser().get_default("resolution")
