@@ -86,45 +86,45 @@ def prepare(args: argparse.Namespace) -> None:
     (args.work / "asset.json").write_text(json.dumps(record, indent=1, ensure_ascii=False, default=str))
 
 
+def enhanced_slots(scene: bpy.types.Scene, prepared: dict, work: Path, graph: str
+                   ) -> list[tuple[bpy.types.MaterialSlot, tuple[bpy.types.Material, bpy.types.Material]]]:
+    """Every material slot of ``scene`` that holds a prepared material, with that material's (beauty,
+    intrinsics) pair built from ``work/materials``."""
+    from batch import dataset_material
+
+    built = {m["name"]: dataset_material.build(work / "materials" / m["folder"], graph)
+             for m in prepared["materials"]}
+    return [(s, built[s.material.name]) for o in scene.objects for s in getattr(o, "material_slots", [])
+            if s.material is not None and s.material.name in built]
+
+
 def render(args: argparse.Namespace) -> None:
     from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
 
     prefer_blender_bundled_modules()  # before anything imports OpenImageIO: OSL needs Blender's copy
-    from batch import dataset_material
-
     clock = StageClock()
     with clock.stage("open"):
         bpy.ops.wm.open_mainfile(filepath=str(args.work / "scene.blend"), load_ui=False, use_scripts=False)
         prepared = json.loads((args.work / "asset.json").read_text(encoding="utf-8"))
         scene = bpy.context.scene
     with clock.stage("materials"):
-        built = {m["name"]: dataset_material.build(args.work / "materials" / m["folder"], args.graph)
-                 for m in prepared["materials"]}
-        slots = [s for o in scene.objects for s in getattr(o, "material_slots", [])
-                 if s.material is not None and s.material.name in built]
-        originals = [s.material.name for s in slots]
+        slots = enhanced_slots(scene, prepared, args.work, args.graph)
 
     with clock.stage("beauty"):
         bl_render.configure_cycles(scene, args.resolution, args.samples, args.adaptive_threshold, args.threads,
                                    args.graph, args.denoise_prefilter, args.device)
         scene.world = bl_render.probe_world(args.probe)
         cam = bl_render.orbit(scene, args.frames, bl_render.start_azimuth(args.asset_id, args.seed))
-        for slot, name in zip(slots, originals):
-            slot.material = built[name][0]
+        for slot, (beauty, _) in slots:
+            slot.material = beauty
         bl_render.beauty_output(scene, args.work / "rgb")
         with bl_render.frame_clock() as frame_seconds:
             bpy.ops.render.render(animation=True, scene=scene.name)
 
     with clock.stage("intrinsics"):
-        for slot, name in zip(slots, originals):
-            slot.material = built[name][1]
-        intrinsics = bl_render.intrinsics_scene(scene, args.aov_samples)
-        bl_render.add_aovs(intrinsics.view_layers[0])
-        bl_render.compositor_outputs(intrinsics, args.work / "passes")
-        scratch = args.work / "scratch"
-        bl_render.scratch_output(intrinsics, scratch)
-        bpy.ops.render.render(animation=True, scene=intrinsics.name)
-        shutil.rmtree(scratch)
+        for slot, (_, unlit) in slots:
+            slot.material = unlit
+        render_intrinsics(scene, args.aov_samples, args.work)
     with clock.stage("video"):
         cameras = bl_render.camera_record(scene, cam, args.frames)
         (args.work / "cameras.json").write_text(json.dumps(cameras, indent=1))
@@ -135,6 +135,19 @@ def render(args: argparse.Namespace) -> None:
     record = clock.record()
     record["timings_s"]["beauty_frames"] = frame_seconds
     (args.work / "render.json").write_text(json.dumps({"frames": frames, **record}, indent=1))
+
+
+def render_intrinsics(scene: bpy.types.Scene, samples: int, work: Path, frame_step: int = 1) -> None:
+    """The intrinsics pass over ``scene``'s orbit (its objects already wear their SVM materials) into
+    ``work/passes``; ``frame_step`` > 1 renders every so many frames (``bench/intrinsics_samples.py``)."""
+    intrinsics = bl_render.intrinsics_scene(scene, samples)
+    intrinsics.frame_step = frame_step
+    bl_render.add_aovs(intrinsics.view_layers[0])
+    bl_render.compositor_outputs(intrinsics, work / "passes")
+    scratch = work / "scratch"
+    bl_render.scratch_output(intrinsics, scratch)
+    bpy.ops.render.render(animation=True, scene=intrinsics.name)
+    shutil.rmtree(scratch)
 
 
 def device(args: argparse.Namespace) -> None:
