@@ -21,7 +21,7 @@ no interreflection, so the terms are the material's own; what Cycles adds on top
 light transport, the same for Bake and Preview) is measured by ``bench/addon_assets.py``.
 
     python -m bench.neural_error_budget [--assets WaterBottle ...] [--resolution 256] [--spp 64]
-        [--out docs/reports/neural_error_budget.json]
+        [--weights FOLDER] [--out docs/reports/neural_error_budget.json]
 """
 from __future__ import annotations
 
@@ -383,10 +383,12 @@ def main() -> None:
                         help="at most this many texels a side (every k-th texel); 0: the maps as they are")
     parser.add_argument("--tau", type=float, default=0.1, help="the bilateral filter's latent distance scale")
     parser.add_argument("--cache", type=Path, default=None, help="keep fits here, to rerun without refitting")
+    parser.add_argument("--weights", type=Path, default=trained.SHIPPED,
+                        help="the decoder's weights folder (default: the shipped one)")
     add_out_argument(parser, "neural_error_budget.json")
     args = parser.parse_args()
     start = time.perf_counter()
-    model = trained.load(trained.SHIPPED)
+    model = trained.load(args.weights)
     env = EnvMap.load(DEFAULT_PROBE)
     report: dict = {"settings": {**{k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()
                                     if k != "out"},
@@ -402,7 +404,7 @@ def main() -> None:
                 print(f"{name} {scene}: floor {b['flip']['noise_floor']:.4f}, " +
                       ", ".join(f"{k} {v:+.4f}" for k, v in b["terms"].items()), flush=True)
             report["wall_seconds"] = time.perf_counter() - start
-            write_report(args.out, report, [trained.SHIPPED])
+            write_report(args.out, report, [args.weights])
             chart(report, args.out.with_suffix(".png"))
             sheet(images, args.out.with_name(f"{args.out.stem}_sheet.png"))
 

@@ -95,7 +95,7 @@ def test_cycles_closures_agree_with_the_torch_closure_form_under_the_probe(
 
 
 SHIPPED = Path(__file__).resolve().parents[1] / "torch_models" / "neural" / "weights"
-VIEW_GATED = SHIPPED / "view_gates"  # the view-gated hybrid kept beside the shipped decoder (bench/view_gates.py)
+VIEW_GATED = SHIPPED / "view_gates"  # the view-gated hybrid kept beside the shipped decoder (bench/decoder_candidates.py)
 # a Type 2 metal (support/agreement_cases.py, seed 0, type2_metal_1): its base and each decoder's encoder latent
 METAL_BASE = [0.6001, 0.5731, 0.3761]
 METAL_LATENT = {SHIPPED: [0.2547, -0.4069, -0.6685, -0.3168, 0.1747, -0.318],
