@@ -44,8 +44,8 @@ from richmat_addon.core.tensor_file import read_safetensors
 from torch_models.neural import trained
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.closure_form import closure_model
-from torch_models.neural.evaluate import DEFAULT_PROBE, KEY_LIGHT, SCENES, BallSetup
-from torch_models.render.ball import Sun, render_ball
+from torch_models.neural.evaluate import DEFAULT_PROBE, KEY_LIGHT, SCENES, BallSetup, ball_image
+from torch_models.render.ball import Sun
 from torch_models.render.flip import flip_map, mean_flip
 from torch_models.render.tonemap import agx
 
@@ -102,8 +102,7 @@ def torch_images(model: trained.NeuralModel, case: dict, setup: BallSetup, sun: 
     out = {}
     for name, m, seed in (("full", model, 0), ("full_seed1", model, 1), ("closure_form", closure, 0)):
         bsdf = NeuralBsdf(m, torch.tensor([case["z"]]), torch.tensor([case["base"]]), 1.0)
-        with torch.no_grad():
-            out[name] = agx(render_ball(lambda n: bsdf, setup.env, setup.scene, setup.spp, seed, sun=sun).rgb)
+        out[name] = ball_image(setup, bsdf, seed, sun)
     return out
 
 

@@ -32,18 +32,15 @@ import torch
 
 from bench.common import FLIP_CONVENTION, add_out_argument, add_weights_argument, pyplot, save_chart, write_report
 from bench.neural_error_budget import ASSETS as HELD_OUT_ASSETS
-from richmat_addon.core.schema import CHANNEL_SLICES
 from support.agreement_cases import Case, cases
 from support.real_cases import real_cases
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
 from torch_models.neural import fitting, trained
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.closure_form import ClosureForm, closure_model
-from torch_models.neural.evaluate import KEY_LIGHT, SCENES, BallSetup
+from torch_models.neural.evaluate import KEY_LIGHT, SCENES, BallSetup, ball_image
 from torch_models.neural.model import NeuralModel
-from torch_models.render.ball import Sun, render_ball
 from torch_models.render.flip import mean_flip
-from torch_models.render.tonemap import agx
 
 FIT_STEPS = 300  # the add-on's Fit Steps
 DEFAULT_CANDIDATES = ("view_gates", "real")  # weight folders beside the shipped decoder's
@@ -56,11 +53,6 @@ def fitted(model: NeuralModel, vectors: np.ndarray, per_vector: int) -> tuple[to
     with fitting.deterministic():
         z = fitting.fit_latents(model, vectors, FIT_STEPS, seed=0, per_vector=per_vector).detach()
     return z, fitting.held_out_loss(model, vectors, z)
-
-
-def ball(bsdf: object, setup: BallSetup, seed: int, sun: Sun | None) -> np.ndarray:
-    with torch.no_grad():
-        return agx(render_ball(lambda n: bsdf, setup.env, setup.scene, setup.spp, seed, sun=sun).rgb)
 
 
 def gate_seconds(model: NeuralModel, points: int = 1 << 15) -> float:
@@ -99,12 +91,12 @@ def measure(chosen: list[Case], decoders: dict[str, NeuralModel], per_vector: in
         analytic = LayeredBsdf(params_from_vectors(torch.from_numpy(vectors[i:i + 1])), base)
         row: dict = {"name": case.name, "metal": is_metal(case)}
         for scene, sun in SCENES.items():
-            ref = ball(analytic, setup, 0, sun)
-            row[scene] = {"noise_floor": mean_flip(ref, ball(analytic, setup, 1, sun))}
+            ref = ball_image(setup, analytic, 0, sun)
+            row[scene] = {"noise_floor": mean_flip(ref, ball_image(setup, analytic, 1, sun))}
             for name, model in decoders.items():
                 z = fits[name][0][i:i + 1]
                 for label, form in previews(name, model).items():
-                    row[scene][label] = mean_flip(ref, ball(NeuralBsdf(form, z, base), setup, 0, sun))
+                    row[scene][label] = mean_flip(ref, ball_image(setup, NeuralBsdf(form, z, base), 0, sun))
         rows.append(row)
         print(case.name, {s: {k: round(v, 4) for k, v in row[s].items()} for s in SCENES}, flush=True)
     return rows, {name: loss for name, (_, loss) in fits.items()}

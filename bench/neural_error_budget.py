@@ -28,8 +28,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -49,6 +47,7 @@ from torch_models.generator.views import render_intrinsics, sample_texture
 from torch_models.neural import energy, fitting, trained
 from torch_models.neural.mlp.energy import REFIT_STEPS
 from torch_models.neural.model import NeuralModel
+from torch_models.neural.real_vectors import enhanced_folders
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.closure_form import closure_model
 from torch_models.neural.evaluate import DEFAULT_PROBE, KEY_LIGHT, SCENES
@@ -126,9 +125,7 @@ class Material:
 
 def enhance(asset: Path, out: Path) -> dict[str, Path]:
     """The farm's ``enhance`` at its defaults; {material name: folder}."""
-    subprocess.run([sys.executable, "-m", "torch_models", "enhance", str(asset), "--out", str(out)],
-                   check=True, capture_output=True)
-    return {json.loads((f / "params.json").read_text())["material"]: f for f in sorted(out.iterdir())}
+    return {json.loads((f / "params.json").read_text())["material"]: f for f in enhanced_folders(asset, out)}
 
 
 def subsample(image: np.ndarray, size: int) -> np.ndarray:

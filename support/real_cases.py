@@ -8,8 +8,6 @@ cases, so a ball measures a decoder's reach on vectors real assets hold.
 """
 from __future__ import annotations
 
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
@@ -17,9 +15,10 @@ import numpy as np
 
 from richmat_addon.core import material_folder
 from richmat_addon.core.schema import CHANNEL_SLICES
-from richmat_addon.core.texel_vectors import read_vectors
+from richmat_addon.core.texel_vectors import nearest_resize, read_vectors
 from support.agreement_cases import Case
 from support.paths import SHARED_ASSETS
+from torch_models.neural.real_vectors import enhanced_folders
 
 
 def case_of(name: str, vector: np.ndarray, base: np.ndarray) -> Case:
@@ -35,15 +34,10 @@ def material_cases(folder: Path, label: str, per_material: int, rng: np.random.G
         return [case_of(f"{label}_0", tv.unique[0], base.reshape(-1, 3)[0])]
     counts = np.bincount(tv.inverse, minlength=len(tv.unique))
     picks = rng.choice(len(tv.unique), min(per_material, len(tv.unique)), replace=False, p=counts / counts.sum())
-    texel_of = np.zeros(len(tv.unique), np.int64)
-    texel_of[tv.inverse[::-1]] = np.arange(len(tv.inverse))[::-1]  # the first texel of each vector
-    colours = base.reshape(-1, 3) if base.ndim == 3 else np.broadcast_to(base.reshape(1, 3), (len(tv.inverse), 3))
-    if base.ndim == 3 and base.shape[0] * base.shape[1] != len(tv.inverse):  # base colour at another size
-        h, w = tv.shape
-        rows = np.arange(h) * base.shape[0] // h
-        cols = np.arange(w) * base.shape[1] // w
-        colours = base[rows[:, None], cols[None, :]].reshape(-1, 3)
-    return [case_of(f"{label}_{k}", tv.unique[i], colours[texel_of[i]]) for k, i in enumerate(picks)]
+    _, first_texel = np.unique(tv.inverse, return_index=True)  # every vector covers at least one texel
+    colours = (nearest_resize(base, tv.shape) if base.ndim == 3 else np.broadcast_to(base, (*tv.shape, 3)))
+    colours = colours.reshape(-1, 3)
+    return [case_of(f"{label}_{k}", tv.unique[i], colours[first_texel[i]]) for k, i in enumerate(picks)]
 
 
 def real_cases(assets: list[str], per_material: int, seed: int = 0) -> list[Case]:
@@ -52,9 +46,6 @@ def real_cases(assets: list[str], per_material: int, seed: int = 0) -> list[Case
     out: list[Case] = []
     with tempfile.TemporaryDirectory() as tmp:
         for asset in assets:
-            folder = Path(tmp) / asset
-            subprocess.run([sys.executable, "-m", "torch_models", "enhance", str(SHARED_ASSETS / "models" / f"{asset}.glb"),
-                            "--out", str(folder)], check=True, capture_output=True)
-            for material in sorted(folder.iterdir()):
+            for material in enhanced_folders(SHARED_ASSETS / "models" / f"{asset}.glb", Path(tmp) / asset):
                 out += material_cases(material, f"{asset}_{material.name}", per_material, rng)
     return out

@@ -49,6 +49,15 @@ class TexelVectors:
         return np.ascontiguousarray(values.reshape(*self.shape, -1))
 
 
+def nearest_resize(image: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """(H, W, C) ``image`` resampled to ``shape`` by the nearest texel (itself when it has that size)."""
+    if image.shape[:2] == tuple(shape):
+        return image
+    rows = (np.arange(shape[0]) * image.shape[0] // shape[0])[:, None]
+    cols = (np.arange(shape[1]) * image.shape[1] // shape[1])[None, :]
+    return image[rows, cols]
+
+
 def texel_matrix(folder: Path) -> tuple[tuple[int, int] | None, np.ndarray]:
     """(texture size or None, every texel's packed vector (H*W or 1, 22)) of an enhanced material folder."""
     mf = material_folder.read(folder)
@@ -58,11 +67,7 @@ def texel_matrix(folder: Path) -> tuple[tuple[int, int] | None, np.ndarray]:
     for p in PARAMS:
         m = maps[p.name]
         if m.ndim == 3:
-            if m.shape[:2] != shape:  # nearest resampling to the largest map
-                rows = (np.arange(shape[0]) * m.shape[0] // shape[0])[:, None]
-                cols = (np.arange(shape[1]) * m.shape[1] // shape[1])[None, :]
-                m = m[rows, cols]
-            columns.append(m.reshape(-1, p.channels))
+            columns.append(nearest_resize(m, shape).reshape(-1, p.channels))
         else:
             columns.append(np.broadcast_to(m, ((shape[0] * shape[1]) if shape else 1, p.channels)))
     return shape, np.nan_to_num(np.concatenate(columns, 1).astype(np.float32))

@@ -50,11 +50,18 @@ class BallSetup:
         return cls(EnvMap.load(probe), PreviewScene(resolution=resolution), spp, seed)
 
 
+def ball_image(setup: BallSetup, bsdf: object, seed: int | None = None, sun: Sun | None = None) -> np.ndarray:
+    """AgX display image of one BSDF on the ball (at ``seed``, else the setup's; lit by the probe [and ``sun``])."""
+    with torch.no_grad():
+        return agx(render_ball(lambda n: bsdf, setup.env, setup.scene, setup.spp,
+                               setup.seed if seed is None else seed, sun=sun).rgb)
+
+
 def render_reference(setup: BallSetup, vector: np.ndarray, base_color: np.ndarray) -> np.ndarray:
     """AgX display image of the analytic material (22-vector) on the ball."""
     bsdf = LayeredBsdf(params_from_vectors(torch.as_tensor(vector, dtype=torch.float32)[None]),
                        torch.as_tensor(base_color, dtype=torch.float32)[None])
-    return agx(render_ball(lambda n: bsdf, setup.env, setup.scene, setup.spp, setup.seed).rgb)
+    return ball_image(setup, bsdf)
 
 
 def render_neural(setup: BallSetup, model: NeuralModel, latent: Tensor, base_color: np.ndarray,
@@ -62,8 +69,7 @@ def render_neural(setup: BallSetup, model: NeuralModel, latent: Tensor, base_col
     """AgX display image of the decoder at one latent (1, 6) on the ball."""
     bsdf = NeuralBsdf(model, latent.reshape(1, -1), torch.as_tensor(base_color, dtype=torch.float32)[None],
                       energy_scale)
-    with torch.no_grad():
-        return agx(render_ball(lambda n: bsdf, setup.env, setup.scene, setup.spp, setup.seed).rgb)
+    return ball_image(setup, bsdf)
 
 
 @dataclass

@@ -26,12 +26,18 @@ from richmat_addon.core.texel_vectors import read_vectors
 MIRROR_ALPHA = 0.02  # a core GGX alpha below this is a near-mirror (roughness under ~0.14)
 
 
-def uplift(asset: Path, type_: int, seed: int, out: Path) -> list[np.ndarray]:
-    """The deduplicated texel vectors of each material of ``asset`` enhanced at ``type_``."""
+def enhanced_folders(asset: Path, out: Path, type_: int | str = "auto", seed: int = 0) -> list[Path]:
+    """The material folders of ``asset`` enhanced as the farm does (``enhance``; ``type_`` a type index or
+    "auto"; dielectric-only types remapped on metals), written into ``out``."""
     from ..cli_enhance import run
 
     run(argparse.Namespace(asset=asset, type=str(type_), seed=seed, out=out, on_metal="remap"))
-    return [read_vectors(folder).unique for folder in sorted(out.iterdir()) if (folder / "params.json").exists()]
+    return [folder for folder in sorted(out.iterdir()) if (folder / "params.json").exists()]
+
+
+def uplift(asset: Path, type_: int, seed: int, out: Path) -> list[np.ndarray]:
+    """The deduplicated texel vectors of each material of ``asset`` enhanced at ``type_``."""
+    return [read_vectors(folder).unique for folder in enhanced_folders(asset, out, type_, seed)]
 
 
 def build(assets: list[Path], per_group: int, seed: int = 0) -> np.ndarray:

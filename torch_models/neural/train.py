@@ -95,14 +95,13 @@ class Trainer:
         self.skipped = 0  # batches skipped since the last checkpoint (non-finite gradients)
         self.gen = torch.Generator().manual_seed(self._data_seed(0))
         vectors = parameter_vectors(cfg.pool, np.random.default_rng(cfg.seed))
-        self.draw_weights: Tensor | None = None
-        if cfg.real_assets or cfg.emphasis != 1.0:
-            if cfg.real_assets:
-                real = real_vectors.load_or_build([Path(a) for a in cfg.real_assets], cfg.real_per_group,
-                                                  out / "real_vectors.npz")
-                vectors = np.concatenate([vectors, real])
-            self.draw_weights = torch.from_numpy(real_vectors.sampling_weights(vectors, cfg.pool, cfg.real_share,
-                                                                          cfg.emphasis))
+        if cfg.real_assets:
+            vectors = np.concatenate([vectors, real_vectors.load_or_build(
+                [Path(a) for a in cfg.real_assets], cfg.real_per_group, out / "real_vectors.npz")])
+        # uniform draws (None) unless real vectors or an emphasis reweight the pool
+        self.draw_weights = (torch.from_numpy(real_vectors.sampling_weights(vectors, cfg.pool, cfg.real_share,
+                                                                            cfg.emphasis))
+                             if cfg.real_assets or cfg.emphasis != 1.0 else None)
         self.pool = angular_floor(vectors, cfg.alpha_floor)
         self.buffer = [self._new_batch() for _ in range(cfg.buffer_batches)]
         if cfg.init:
