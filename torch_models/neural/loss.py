@@ -51,12 +51,12 @@ def albedo_loss(dec: DecoderNet, z: Tensor, vectors: Tensor, n: int, gen: torch.
     The albedo is estimated from n wo sampled from the analytic lobes (exact pdf): unbiased,
     so the squared error's gradient is unbiased up to the estimate's variance, which the
     0.05 in the denominator keeps from dominating dark materials."""
-    k, device = len(z), z.device
-    s = lobe_samples(vectors, n, gen)
+    k = len(z)
+    s = lobe_samples(vectors.to(z.device), n, gen)
     with torch.no_grad():
-        target = s.bsdf.reflectance(s.wi)[::n, 0].to(device)
-    f, _, _ = dec(z.repeat_interleave(n, 0), s.wi.to(device), s.wo.to(device))
-    est = torch.where(s.ok.to(device), luminance(f)[:, 0] / s.pdf.clamp(min=1e-6).to(device), torch.zeros_like(f[:, 0]))
+        target = s.bsdf.reflectance(s.wi)[::n, 0]
+    f, _, _ = dec(z.repeat_interleave(n, 0), s.wi, s.wo)
+    est = torch.where(s.ok, luminance(f)[:, 0] / s.pdf.clamp(min=1e-6), torch.zeros_like(f[:, 0]))
     return (((est.reshape(k, n).mean(1) - target) / (target + 0.05)) ** 2).mean()
 
 
@@ -74,11 +74,14 @@ class LobeSamples:
 
 
 def lobe_samples(vectors: Tensor, n: int, gen: torch.Generator) -> LobeSamples:
-    """``LobeSamples`` of materials (K, 22), view cosines uniform in [0.05, 1], on the CPU."""
-    k = len(vectors)
-    wi = view_directions(0.05 + 0.95 * torch.rand(k, 1, generator=gen)).repeat_interleave(n, 0)
+    """``LobeSamples`` of materials (K, 22), view cosines uniform in [0.05, 1], on the vectors'
+    device (a GPU run would otherwise spend most of each step here); the random numbers come
+    from the CPU generator ``gen``, so a run draws the same samples on either device."""
+    k, device = len(vectors), vectors.device
+    mu = 0.05 + 0.95 * torch.rand(k, 1, generator=gen)
+    wi = view_directions(mu.to(device)).repeat_interleave(n, 0)
     with torch.no_grad():
-        bsdf = LayeredBsdf(params_from_vectors(vectors.cpu().repeat_interleave(n, 0)), torch.ones(1, 3))
-        wo = bsdf.sample(wi, torch.rand(k * n, 3, generator=gen))
+        bsdf = LayeredBsdf(params_from_vectors(vectors.repeat_interleave(n, 0)), torch.ones(1, 3, device=device))
+        wo = bsdf.sample(wi, torch.rand(k * n, 3, generator=gen).to(device))
         pdf = bsdf.pdf(wi, wo)
     return LobeSamples(bsdf, wi, wo, pdf, (wo[:, 2] > 0) & (pdf > 1e-6))
