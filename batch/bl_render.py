@@ -56,9 +56,11 @@ def use_device(scene: bpy.types.Scene, device: str) -> None:
 
 
 def configure_cycles(scene: bpy.types.Scene, resolution: int, samples: int, threshold: float,
-                     threads: int, graph: str = "osl", prefilter: str = "fast", device: str = "CPU") -> None:
+                     threads: int, graph: str = "osl", prefilter: str = "fast", quality: str = "high",
+                     device: str = "CPU") -> None:
     """The beauty pass; ``graph`` "osl" shades with OSL (the Script node runs only there), "native" with SVM;
-    ``prefilter`` is OIDN's for its albedo and normal passes (``options.DENOISE_PREFILTERS``); ``device`` as
+    ``prefilter`` is OIDN's for its albedo and normal passes (``options.DENOISE_PREFILTERS``), ``quality`` its
+    network (``options.DENOISE_QUALITIES``); ``device`` as
     ``use_device`` (the intrinsics pass keeps it)."""
     use_device(scene, device)
     cy = scene.cycles
@@ -74,6 +76,7 @@ def configure_cycles(scene: bpy.types.Scene, resolution: int, samples: int, thre
     cy.use_denoising = True
     cy.denoiser = "OPENIMAGEDENOISE"
     cy.denoising_prefilter = prefilter.upper()
+    cy.denoising_quality = quality.upper()
     r = scene.render
     r.resolution_x = r.resolution_y = resolution
     r.resolution_percentage = 100
@@ -85,6 +88,15 @@ def configure_cycles(scene: bpy.types.Scene, resolution: int, samples: int, thre
     r.use_stamp = False
     scene.view_settings.view_transform = "AgX"
     scene.view_settings.look = "None"
+
+
+def cycles_record(scene: bpy.types.Scene) -> dict[str, object]:
+    """The beauty pass's Cycles settings as Blender holds them, for the manifest: what rendered, read back."""
+    cy = scene.cycles
+    return {"device": cy.device, "shading_system": "osl" if cy.shading_system else "svm", "samples": cy.samples,
+            "adaptive_threshold": round(cy.adaptive_threshold, 6), "denoiser": cy.denoiser,
+            "denoising_prefilter": cy.denoising_prefilter, "denoising_quality": cy.denoising_quality,
+            "max_bounces": cy.max_bounces}
 
 
 def probe_world(probe: Path) -> bpy.types.World:

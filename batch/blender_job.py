@@ -31,7 +31,8 @@ import bpy  # noqa: E402
 from batch import bl_render  # noqa: E402
 from batch.bl_scene import BadAsset  # noqa: E402
 from batch.options import (  # noqa: E402
-    DEFAULT_DENOISE_PREFILTER, DEFAULT_GRAPH, DEFAULT_MAX_TRIANGLES, DENOISE_PREFILTERS, DEVICES, GRAPHS)
+    DEFAULT_DENOISE_PREFILTER, DEFAULT_DENOISE_QUALITY, DEFAULT_GRAPH, DEFAULT_MAX_TRIANGLES, DENOISE_PREFILTERS,
+    DENOISE_QUALITIES, DEVICES, GRAPHS)
 from richmat_addon.core.stage_clock import StageClock  # noqa: E402
 
 BAD_INPUT_EXIT = 3  # batch.pipeline.BAD_INPUT_EXIT (not imported: the orchestrator side stays bpy-free)
@@ -112,7 +113,8 @@ def render(args: argparse.Namespace) -> None:
 
     with clock.stage("beauty"):
         bl_render.configure_cycles(scene, args.resolution, args.samples, args.adaptive_threshold, args.threads,
-                                   args.graph, args.denoise_prefilter, args.device)
+                                   args.graph, args.denoise_prefilter, args.denoise_quality, args.device)
+        cycles = bl_render.cycles_record(scene)
         scene.world = bl_render.probe_world(args.probe)
         cam = bl_render.orbit(scene, args.frames, bl_render.start_azimuth(args.asset_id, args.seed))
         for slot, (beauty, _) in slots:
@@ -134,7 +136,7 @@ def render(args: argparse.Namespace) -> None:
               for i in range(args.frames)]
     record = clock.record()
     record["timings_s"]["beauty_frames"] = frame_seconds
-    (args.work / "render.json").write_text(json.dumps({"frames": frames, **record}, indent=1))
+    (args.work / "render.json").write_text(json.dumps({"frames": frames, "cycles": cycles, **record}, indent=1))
 
 
 def render_intrinsics(scene: bpy.types.Scene, samples: int, work: Path, frame_step: int = 1) -> None:
@@ -169,6 +171,7 @@ def parse(argv: list[str]) -> argparse.Namespace:
     r.add_argument("--samples", type=int, required=True)
     r.add_argument("--adaptive-threshold", type=float, required=True)
     r.add_argument("--denoise-prefilter", choices=DENOISE_PREFILTERS, default=DEFAULT_DENOISE_PREFILTER)
+    r.add_argument("--denoise-quality", choices=DENOISE_QUALITIES, default=DEFAULT_DENOISE_QUALITY)
     r.add_argument("--probe", type=Path, required=True)
     r.add_argument("--aov-samples", type=int, required=True)
     r.add_argument("--graph", choices=GRAPHS, default=DEFAULT_GRAPH)

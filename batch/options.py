@@ -27,6 +27,10 @@ DEFAULT_CLUSTER_STEP = 1 / 256
 # rendered (bench/beauty_denoise.py measures both).
 DENOISE_PREFILTERS = ("fast", "accurate")
 DEFAULT_DENOISE_PREFILTER = "fast"
+# OIDN's network: "high" is Cycles' default; "balanced" and "fast" are smaller networks (bench/beauty_denoise.py
+# measures them against a high-sample reference).
+DENOISE_QUALITIES = ("high", "balanced", "fast")
+DEFAULT_DENOISE_QUALITY = "high"
 # Cycles devices (``--device``); OSL shades only on the CPU and OptiX (docs/backends.md).
 DEVICES = ("CPU", "CUDA", "OPTIX", "HIP", "METAL", "ONEAPI")
 OSL_DEVICES = ("CPU", "OPTIX")
@@ -63,6 +67,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="OIDN's treatment of the albedo and normal it denoises with: 'accurate' denoises them first (about "
              "half of a 512 px beauty frame on one thread), 'fast' takes them as rendered (default chosen by "
              "bench/beauty_denoise.py, docs/batch.md)")
+    add("--denoise-quality", choices=DENOISE_QUALITIES, default=DEFAULT_DENOISE_QUALITY,
+        help="OIDN's network for the beauty pass: 'high' (Cycles' default), 'balanced' or 'fast' (smaller, "
+             "quicker; default chosen by bench/beauty_denoise.py, docs/batch.md)")
     add("--device", choices=DEVICES, default="CPU",
         help="Cycles device of every render pass; a device this machine does not have fails the run at once, "
              "with the reason in the ledger (never a silent CPU fallback)")
@@ -104,6 +111,7 @@ class Settings:
     samples: int
     adaptive_threshold: float
     denoise_prefilter: str
+    denoise_quality: str
     aov_samples: int
     device: str
     graph: str
@@ -149,7 +157,7 @@ def validate(args: argparse.Namespace) -> None:
 
 def settings_of(args: argparse.Namespace) -> Settings:
     return Settings(PIPELINE_VERSION, args.frames, args.resolution, args.samples, args.adaptive_threshold,
-                    args.denoise_prefilter, args.aov_samples, args.device, args.graph,
+                    args.denoise_prefilter, args.denoise_quality, args.aov_samples, args.device, args.graph,
                     file_sha256(args.probe),
                     file_sha256(args.decoder / "weights.safetensors"), args.fit_steps, args.cluster_step,
                     args.max_texture, args.seed)

@@ -139,7 +139,7 @@ def _stage_commands(asset: Asset, job: Job, work: Path) -> list[tuple[str, list[
     render = ["render", "--work", str(work), "--asset-id", asset.id, "--frames", str(s.frames),
               "--resolution", str(s.resolution), "--samples", str(s.samples),
               "--adaptive-threshold", str(s.adaptive_threshold), "--denoise-prefilter", s.denoise_prefilter,
-              "--aov-samples", str(s.aov_samples), "--device", s.device,
+              "--denoise-quality", s.denoise_quality, "--aov-samples", str(s.aov_samples), "--device", s.device,
               "--graph", s.graph, "--probe", str(job.probe), "--seed", str(s.seed), "--threads", str(threads)]
     return [("prepare", job.commands.blender_job(prepare)), ("fit", job.commands.fit_job(fit)),
             ("render", job.commands.blender_job(render))]
@@ -209,6 +209,7 @@ def _manifest(asset: Asset, job: Job, timings: dict[str, float], attempts: int) 
             "enhancement_type": prepared["type"], "autoexec_fail": prepared.get("autoexec_fail", False),
             "notes": prepared.get("notes", []), "normalisation": prepared.get("normalisation"),
             "materials": prepared["materials"], "fit": fitted, "frames": rendered.get("frames"),
+            "cycles": rendered.get("cycles"),
             "versions": {"blender": prepared.get("blender_version"), "torch": fitted.get("torch_version"),
                          "python": platform.python_version(), "pipeline": job.settings.pipeline},
             "timings_s": {**timings, **_stage_times(children, "timings_s")},

@@ -1,23 +1,25 @@
-"""The beauty pass's denoiser prefilter: seconds per frame against accuracy (issue 29, item 2).
+"""The beauty pass's denoiser, OIDN's prefilter and network: seconds per frame against accuracy
+(issue 29, item 2; issue 40, item 3).
 
-The beauty pass is the farm's biggest stage at the real defaults (bench/farm_cost.py),
-and OIDN's "accurate" prefilter, which denoises the albedo and normal passes before
-using them, costs about half of a 512 px, 16 spp frame on one thread. Here both
-prefilters render the same frames of the same prepared assets (enhanced and fitted
-once, ``bench.render_speed.prepare``) at the farm's defaults otherwise, both at the
-same time so that the shared machine's load hits them alike; each is compared by mean
-FLIP (LDR, AgX PNGs) with a reference of the same frames at ``--reference-samples`` spp
-(accurate prefilter). Seconds per frame: the beauty stage's CPU seconds (one render
-thread) over its frames. The assets are prepared as bench/render_speed.py prepares them
-(textures cut to 128 px, 20 fit steps): the denoiser's cost depends on the image, not on
-them.
+The beauty pass is the farm's biggest stage after the fit (bench/farm_cost.py), and OIDN a
+large part of it: its "accurate" prefilter denoises the albedo and normal passes before using
+them, and its "high" network is Cycles' default. Here every variant (``VARIANTS``) renders the
+same frames of the same prepared assets (enhanced and fitted once,
+``bench.render_speed.prepare``) at the farm's defaults otherwise, ``--repeats`` times, one render
+per core at a time in an order rotated each repeat, so that the shared machine's load hits them
+alike (the median of the repeats is quoted); each is compared by mean FLIP (LDR, AgX PNGs) with a
+reference of the same frames at ``--reference-samples`` spp (accurate prefilter, high network).
+Seconds per frame: the beauty stage's CPU seconds (one render thread) over its frames. The
+assets are prepared as bench/render_speed.py prepares them (textures cut to 128 px, 20 fit
+steps): the denoiser's cost depends on the image, not on them.
 
-    python -m bench.beauty_denoise [--assets A.glb B.glb] [--frames 4] [--reference-samples 128]
+    python -m bench.beauty_denoise [--assets A.glb B.glb] [--frames 4] [--reference-samples 128] [--repeats 3]
 """
 from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
@@ -26,69 +28,82 @@ from pathlib import Path
 import numpy as np
 
 from batch import options
-from batch.options import DEFAULT_DENOISE_PREFILTER, DENOISE_PREFILTERS
+from batch.cores import allowed_cores
+from batch.options import DEFAULT_DENOISE_PREFILTER, DEFAULT_DENOISE_QUALITY
 from bench.common import add_out_argument, pyplot, save_chart, write_report
 from bench.render_speed import beauty_frames, mean_flip, parse, prepare, render_ours
 
 _FARM = options.build_parser()
 SAMPLES, THRESHOLD = _FARM.get_default("samples"), _FARM.get_default("adaptive_threshold")  # the farm's defaults
+VARIANTS = (("accurate", "high"), ("fast", "high"), ("fast", "balanced"), ("fast", "fast"))  # (prefilter, network)
+FARM_DEFAULT = (DEFAULT_DENOISE_PREFILTER, DEFAULT_DENOISE_QUALITY)
+
+
+def label(variant: tuple[str, str]) -> str:
+    return f"{variant[0]} prefilter, {variant[1]} network"
 
 
 def main(argv: list[str]) -> int:
     extra = argparse.ArgumentParser(add_help=False)
     add_out_argument(extra, "beauty_denoise.json")
+    extra.add_argument("--repeats", type=int, default=3, help="renders of each variant (median CPU seconds)")
     own, rest = extra.parse_known_args(argv)
     args = parse(["--resolution", "512", "--threads", "1", "--reference-samples", "128",
                   "--work", str(Path(tempfile.gettempdir()) / "richmat_beauty_denoise"), *rest])
     assets = [a for a in args.assets if a.is_file()]
     prepared = [prepare(a, args.work, args) for a in assets]
-    rows = {p: {"seconds_per_frame": [], "flip": []} for p in DENOISE_PREFILTERS}
+    rows = {label(v): {"seconds_per_frame": [], "flip": []} for v in VARIANTS}
     for asset in prepared:
         ref_dir = args.work / "ref" / asset.name
         if (ref_dir / "render.json").is_file():  # a reference this work folder already holds
             reference = beauty_frames(ref_dir)
         else:
-            _, _, reference = render_ours(asset, ref_dir, args.reference_samples, 0.001, args, "accurate")
+            _, _, reference = render_ours(asset, ref_dir, args.reference_samples, 0.001, args, "accurate", "high")
 
-        def render(prefilter: str) -> tuple[float, list[np.ndarray]]:
-            out = args.work / prefilter / asset.name
-            _, _, frames = render_ours(asset, out, SAMPLES, THRESHOLD, args, prefilter)
-            cpu = json.loads((out / "render.json").read_text())["cpu_s"]["beauty"]
-            return cpu / args.frames, frames
+        def render(variant: tuple[str, str]) -> float:
+            out = args.work / "_".join(variant) / asset.name
+            shutil.rmtree(out, ignore_errors=True)
+            render_ours(asset, out, SAMPLES, THRESHOLD, args, *variant)
+            return json.loads((out / "render.json").read_text())["cpu_s"]["beauty"] / args.frames
 
-        with ThreadPoolExecutor(len(DENOISE_PREFILTERS)) as pool:  # at once: the machine's load hits both alike
-            results = dict(zip(DENOISE_PREFILTERS, pool.map(render, DENOISE_PREFILTERS)))
-        for prefilter, (seconds, frames) in results.items():
-            rows[prefilter]["seconds_per_frame"].append(seconds)
-            rows[prefilter]["flip"].append(mean_flip(reference, frames))
-            print(asset.name, prefilter, seconds, rows[prefilter]["flip"][-1], flush=True)
-    summary = {p: {"median_seconds_per_frame": float(np.median(r["seconds_per_frame"])),
-                   "mean_flip": float(np.mean(r["flip"])), **r} for p, r in rows.items()}
+        seconds: dict[tuple[str, str], list[float]] = {v: [] for v in VARIANTS}
+        with ThreadPoolExecutor(len(allowed_cores())) as pool:
+            for repeat in range(own.repeats):
+                order = VARIANTS[repeat % len(VARIANTS):] + VARIANTS[:repeat % len(VARIANTS)]
+                for variant, cpu in zip(order, pool.map(render, order)):
+                    seconds[variant].append(cpu)
+        for variant in VARIANTS:  # the frames are the same at every repeat (seeded): FLIP of the last
+            row = rows[label(variant)]
+            row["seconds_per_frame"].append(float(np.median(seconds[variant])))
+            row["flip"].append(mean_flip(reference, beauty_frames(args.work / "_".join(variant) / asset.name)))
+            print(asset.name, label(variant), seconds[variant], row["flip"][-1], flush=True)
+    summary = {name: {"median_seconds_per_frame": float(np.median(r["seconds_per_frame"])),
+                      "mean_flip": float(np.mean(r["flip"])), **r} for name, r in rows.items()}
+    default = summary[label(FARM_DEFAULT)]
     report = {"assets": [a.name for a in assets], "resolution": args.resolution, "frames": args.frames,
-              "samples": SAMPLES, "adaptive_threshold": THRESHOLD, "threads": args.threads,
-              "reference_samples": args.reference_samples, "farm_default": DEFAULT_DENOISE_PREFILTER,
-              "prefilters": summary,
-              "speedup_fast_over_accurate": summary["accurate"]["median_seconds_per_frame"]
-              / summary["fast"]["median_seconds_per_frame"],
-              "flip_added_by_fast": summary["fast"]["mean_flip"] - summary["accurate"]["mean_flip"]}
+              "samples": SAMPLES, "adaptive_threshold": THRESHOLD, "threads": args.threads, "repeats": own.repeats,
+              "reference_samples": args.reference_samples, "farm_default": label(FARM_DEFAULT),
+              "variants": summary,
+              "time_over_farm_default": {name: r["median_seconds_per_frame"] / default["median_seconds_per_frame"]
+                                         for name, r in summary.items()},
+              "flip_over_farm_default": {name: r["mean_flip"] - default["mean_flip"] for name, r in summary.items()}}
     write_report(own.out, report, [args.decoder])
     chart(report, own.out.with_suffix(".png"))
-    print(json.dumps({k: report[k] for k in ("speedup_fast_over_accurate", "flip_added_by_fast")}, indent=1))
+    print(json.dumps({k: report[k] for k in ("time_over_farm_default", "flip_over_farm_default")}, indent=1))
     return 0
 
 
 def chart(report: dict, path: Path) -> None:
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
-    for prefilter, row in report["prefilters"].items():
-        ax.plot(row["seconds_per_frame"], row["flip"], "o", ms=8, label=f"prefilter {prefilter}")
-        for name, x, y in zip(report["assets"], row["seconds_per_frame"], row["flip"]):
-            ax.annotate(Path(name).stem, (x, y), fontsize=7, xytext=(4, 3), textcoords="offset points")
+    for name, row in report["variants"].items():
+        ax.plot(row["seconds_per_frame"], row["flip"], "o", ms=8, label=name)
+        for asset, x, y in zip(report["assets"], row["seconds_per_frame"], row["flip"]):
+            ax.annotate(Path(asset).stem, (x, y), fontsize=7, xytext=(4, 3), textcoords="offset points")
     ax.set_xlabel("beauty CPU seconds per frame (one thread)")
     ax.set_ylabel(f"mean FLIP vs {report['reference_samples']} spp reference")
-    ax.set_title(f"{report['resolution']}² beauty, {report['samples']} spp, OIDN: fast prefilter "
-                 f"{report['speedup_fast_over_accurate']:.2f}x faster, FLIP {report['flip_added_by_fast']:+.4f}",
-                 fontsize=9)
+    ax.set_title(f"{report['resolution']}² beauty, {report['samples']} spp: OIDN's prefilter and network "
+                 f"(farm default: {report['farm_default']})", fontsize=9)
     ax.legend(fontsize=8)
     save_chart(fig, path)
 

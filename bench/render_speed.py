@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from batch.options import DEFAULT_DENOISE_PREFILTER, DEFAULT_GRAPH
+from batch.options import DEFAULT_DENOISE_PREFILTER, DEFAULT_DENOISE_QUALITY, DEFAULT_GRAPH
 from bench.common import REPO, add_out_argument, child_env, pyplot, save_chart, write_report
 
 SHARED_MODELS = REPO.parent / "shared" / "assets" / "models"
@@ -112,16 +112,18 @@ def beauty_frames(folder: Path) -> list[np.ndarray]:
 
 
 def render_ours(prepared: Path, out: Path, samples: int, threshold: float, args: argparse.Namespace,
-                prefilter: str = DEFAULT_DENOISE_PREFILTER) -> tuple[float, dict, list[np.ndarray]]:
-    """Our render stage: (wall seconds, render.json timings, beauty frames); ``prefilter`` is OIDN's."""
+                prefilter: str = DEFAULT_DENOISE_PREFILTER, quality: str = DEFAULT_DENOISE_QUALITY
+                ) -> tuple[float, dict, list[np.ndarray]]:
+    """Our render stage: (wall seconds, render.json timings, beauty frames); ``prefilter`` and ``quality``
+    are OIDN's."""
     from batch.pipeline import default_commands
 
     _copy_prepared(prepared, out)
     cmd = default_commands(None, None).blender_job(
         ["render", "--work", str(out), "--asset-id", prepared.name, "--frames", str(args.frames),
          "--resolution", str(args.resolution), "--samples", str(samples), "--adaptive-threshold", str(threshold),
-         "--denoise-prefilter", prefilter, "--aov-samples", str(args.aov_samples), "--probe", str(args.probe),
-         "--seed", "0", "--threads", str(args.threads)])
+         "--denoise-prefilter", prefilter, "--denoise-quality", quality, "--aov-samples", str(args.aov_samples),
+         "--probe", str(args.probe), "--seed", "0", "--threads", str(args.threads)])
     seconds = _run(cmd, out / "logs" / "render")
     timings = json.loads((out / "render.json").read_text())["timings_s"]
     return seconds, timings, beauty_frames(out)

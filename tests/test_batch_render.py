@@ -21,7 +21,7 @@ import numpy as np
 from PIL import Image
 
 from batch import ledger
-from batch.options import DEFAULT_DECODER
+from batch.options import DEFAULT_DECODER, DEFAULT_DENOISE_PREFILTER, DEFAULT_DENOISE_QUALITY
 from richmat_addon.core import dataset_index, neural_folder
 from richmat_addon.core.enhancement_types import TYPES
 from support.batch_inputs import TETRA_STL, make_inputs
@@ -73,6 +73,10 @@ def test_tiny_batch_renders_good_assets_and_reports_bad_ones(tmp_path: Path) -> 
                      "cameras.json", "caption.txt"):
             assert name in manifest["files"], (source, name)
         assert manifest["enhancement_type"] in range(len(TYPES)) and manifest["caption"].startswith("a ")
+        assert manifest["cycles"] == {"device": "CPU", "shading_system": "svm", "samples": 2,  # what reached Cycles
+                                      "adaptive_threshold": 0.01, "denoiser": "OPENIMAGEDENOISE",
+                                      "denoising_prefilter": DEFAULT_DENOISE_PREFILTER.upper(),
+                                      "denoising_quality": DEFAULT_DENOISE_QUALITY.upper(), "max_bounces": 3}
         assert all(m["furnace"]["checked"] > 0 for m in manifest["fit"]["materials"].values())
         if source == "trap.blend":
             assert manifest["autoexec_fail"] is True

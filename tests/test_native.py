@@ -170,16 +170,22 @@ def test_the_farm_takes_the_graph_and_hashes_it():
         parser.parse_args(base + ["--graph", "svm"])
 
 
-def test_the_farm_takes_the_denoise_prefilter_and_hashes_it():
-    """OIDN's fast prefilter is the default (bench/beauty_denoise.py); the other renders other frames."""
+@pytest.mark.parametrize("option, choices, default", [
+    ("denoise_prefilter", options.DENOISE_PREFILTERS, "fast"),
+    ("denoise_quality", options.DENOISE_QUALITIES, "high")])
+def test_the_farm_takes_the_denoiser_settings_and_hashes_them(option: str, choices: tuple[str, ...],
+                                                               default: str) -> None:
+    """OIDN's prefilter and network default to what bench/beauty_denoise.py chose; every other
+    choice renders other frames, so it is another settings hash."""
     parser = options.build_parser()
     base = ["--input", "in", "--output", "out"]
-    assert parser.parse_args(base).denoise_prefilter == "fast"
-    fast, accurate = (options.settings_of(parser.parse_args(base + ["--denoise-prefilter", p]))
-                      for p in ("fast", "accurate"))
-    assert accurate.denoise_prefilter == "accurate" and accurate.hash() != fast.hash()
+    flag = "--" + option.replace("_", "-")
+    assert getattr(parser.parse_args(base), option) == default
+    settings = [options.settings_of(parser.parse_args(base + [flag, c])) for c in choices]
+    assert [getattr(s, option) for s in settings] == list(choices)
+    assert len({s.hash() for s in settings}) == len(choices)
     with pytest.raises(SystemExit):
-        parser.parse_args(base + ["--denoise-prefilter", "none"])
+        parser.parse_args(base + [flag, "none"])
 
 
 ADDON_BALL = r'''
