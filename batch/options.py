@@ -59,7 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                              "anew from the manifests of the assets published there")
     add("--frames", type=int, default=16, help="frames of the orbit")
     add("--resolution", type=int, default=512, help="image width and height in pixels")
-    add("--samples", type=int, default=16, help="Cycles samples per pixel of the beauty pass (denoised; "
+    add("--samples", type=int, default=12, help="Cycles samples per pixel of the beauty pass (denoised; "
                                                 "default chosen by bench/render_speed.py, docs/batch.md)")
     add("--adaptive-threshold", type=float, default=0.01, help="Cycles adaptive sampling noise threshold "
                                                               "(default chosen with --samples)")

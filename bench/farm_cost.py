@@ -1,7 +1,7 @@
 """What one asset costs the farm at the real defaults, stage by stage: today's farm against a cheaper one.
 
 1. The farm. Each asset goes through ``batch/render_dataset.py`` on its own at the
-   defaults (512 px, 16 frames, 16 spp, 300 fit steps, the shipped decoder), with
+   defaults (512 px, 16 frames, 12 spp, 300 fit steps, the shipped decoder), with
    ``--max-texture`` above every texture (checked: no "downscaled" note) and one
    worker, so every child renders or fits with all of the machine's cores
    (``threads_per_child`` in the report: 2 here). Per stage, CPU seconds from the manifest (each child times its
