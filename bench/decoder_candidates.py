@@ -1,7 +1,8 @@
 """Decoders side by side on Table 1's cases and on vectors of held-out real assets (issue 41, items 2 and 4).
 
 Each decoder (``--weights``, repeatable; default: the shipped one, the view-gated one trained
-with the shipped recipe, and the one trained on uplifted real materials) fits every case's
+with the shipped recipe, and the two view-gated ones trained on uplifted real materials, against
+the shipped encoder frozen and with their own) fits every case's
 vector in one fit (``--per-vector`` samples per vector and step, the add-on's 300 steps), and
 the torch renderer draws the ball of the analytic material (two seeds: the noise floor) and of
 each decoder as the preview shows it: a decoder whose gates read both directions through its
@@ -43,9 +44,10 @@ from torch_models.neural.model import NeuralModel
 from torch_models.render.flip import mean_flip
 
 FIT_STEPS = 300  # the add-on's Fit Steps
-DEFAULT_CANDIDATES = ("view_gates", "real")  # weight folders beside the shipped decoder's
+DEFAULT_CANDIDATES = ("view_gates", "real", "view_gates_real")  # weight folders beside the shipped decoder's
 LABELS = {"shipped": "shipped, closure form (the preview)", "shipped_full": "shipped in full (torch only)",
-          "view_gates": "view-gated, own encoder", "real": "view-gated, real vectors, shipped encoder"}
+          "view_gates": "view-gated, own encoder", "real": "view-gated, real vectors, shipped encoder",
+          "view_gates_real": "view-gated, real vectors, own encoder"}
 
 
 def fitted(model: NeuralModel, vectors: np.ndarray, per_vector: int) -> tuple[torch.Tensor, float]:
