@@ -47,7 +47,8 @@ FIT_STEPS = 300  # the add-on's Fit Steps
 DEFAULT_CANDIDATES = ("view_gates", "real", "view_gates_real")  # weight folders beside the shipped decoder's
 LABELS = {"shipped": "shipped, closure form (the preview)", "shipped_full": "shipped in full (torch only)",
           "view_gates": "view-gated, own encoder", "real": "view-gated, real vectors, shipped encoder",
-          "view_gates_real": "view-gated, real vectors, own encoder"}
+          "view_gates_real": "view-gated, real vectors, own encoder",
+          "view_gates_real_l4": "the same with four GGX lobes"}
 
 
 def fitted(model: NeuralModel, vectors: np.ndarray, per_vector: int) -> tuple[torch.Tensor, float]:
