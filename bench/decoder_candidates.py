@@ -48,7 +48,9 @@ DEFAULT_CANDIDATES = ("view_gates", "real", "view_gates_real")  # weight folders
 LABELS = {"shipped": "shipped, closure form (the preview)", "shipped_full": "shipped in full (torch only)",
           "view_gates": "view-gated, own encoder", "real": "view-gated, real vectors, shipped encoder",
           "view_gates_real": "view-gated, real vectors, own encoder",
-          "view_gates_real_l4": "the same with four GGX lobes"}
+          "view_gates_real_l4": "the same with four GGX lobes",
+          "view_gates_l4": "view-gated, four GGX lobes, own encoder",
+          "view_gates_l4_seed1": "the same, training seed 1"}
 
 
 def fitted(model: NeuralModel, vectors: np.ndarray, per_vector: int) -> tuple[torch.Tensor, float]:
