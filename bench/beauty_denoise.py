@@ -60,8 +60,11 @@ def main(argv: list[str]) -> int:
         else:
             _, _, reference = render_ours(asset, ref_dir, args.reference_samples, 0.001, args, "accurate", "high")
 
+        def folder(variant: tuple[str, str]) -> Path:
+            return args.work / "_".join(variant) / asset.name
+
         def render(variant: tuple[str, str]) -> float:
-            out = args.work / "_".join(variant) / asset.name
+            out = folder(variant)
             shutil.rmtree(out, ignore_errors=True)
             render_ours(asset, out, SAMPLES, THRESHOLD, args, *variant)
             return json.loads((out / "render.json").read_text())["cpu_s"]["beauty"] / args.frames
@@ -75,7 +78,7 @@ def main(argv: list[str]) -> int:
         for variant in VARIANTS:  # the frames are the same at every repeat (seeded): FLIP of the last
             row = rows[label(variant)]
             row["seconds_per_frame"].append(float(np.median(seconds[variant])))
-            row["flip"].append(mean_flip(reference, beauty_frames(args.work / "_".join(variant) / asset.name)))
+            row["flip"].append(mean_flip(reference, beauty_frames(folder(variant))))
             print(asset.name, label(variant), seconds[variant], row["flip"][-1], flush=True)
     summary = {name: {"median_seconds_per_frame": float(np.median(r["seconds_per_frame"])),
                       "mean_flip": float(np.mean(r["flip"])), **r} for name, r in rows.items()}

@@ -228,11 +228,12 @@ def test_a_training_step_on_cuda_matches_the_cpu(tmp_path: Path) -> None:
     from torch_models.neural.kinds import load_config
     from torch_models.neural.train import Trainer
 
+    hybrid = {k: v for k, v in TINY.items() if k != "sampler_steps"}  # the MLP's phase
+    hybrid.update(kind="hybrid", sheen=True, unit_lobes=True, view_gates=True, albedo_weight=0.1,
+                  albedo_materials=16, albedo_samples=32)
     losses = []
     for device in ("cpu", "cuda"):
         path = tmp_path / f"{device}.json"
-        path.write_text(json.dumps(dict({k: v for k, v in TINY.items() if k != "sampler_steps"}, kind="hybrid", sheen=True, unit_lobes=True, view_gates=True,
-                                        albedo_weight=0.1, albedo_materials=16, albedo_samples=32,
-                                        device=device)))
+        path.write_text(json.dumps(dict(hybrid, device=device)))
         losses.append(Trainer(load_config(path), tmp_path / device).decoder_step())
     assert math.isfinite(losses[0]) and losses[1] == pytest.approx(losses[0], rel=1e-3)
