@@ -7,7 +7,10 @@ vector in one fit (``--per-vector`` samples per vector and step, the add-on's 30
 the torch renderer draws the ball of the analytic material (two seeds: the noise floor) and of
 each decoder as the preview shows it: a decoder whose gates read both directions through its
 closure form (its gates held per shading point, ``closure_form``), beside itself in full; a
-view-gated decoder is its own closure form. Two case sets:
+view-gated decoder is its own closure form. Beside them, the first decoder's lobe form with its
+own parameters per case (``free_lobes``, ``FREE_STEPS`` steps from that decoder's fit): what no
+decoder with these lobes can beat, so a decoder's distance from it is what its shared networks
+and latent space cost. Two case sets:
 
 * ``table1``: the agreement cases (``support/agreement_cases.py``, seed 0, ``--per-type`` per
   type, metals where the type allows);
@@ -36,7 +39,7 @@ from bench.neural_error_budget import ASSETS as HELD_OUT_ASSETS
 from support.agreement_cases import Case, cases
 from support.real_cases import real_cases
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
-from torch_models.neural import fitting, trained
+from torch_models.neural import fitting, free_lobes, trained
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.closure_form import ClosureForm, closure_model
 from torch_models.neural.evaluate import KEY_LIGHT, SCENES, BallSetup, ball_image
@@ -44,13 +47,16 @@ from torch_models.neural.model import NeuralModel
 from torch_models.render.flip import mean_flip
 
 FIT_STEPS = 300  # the add-on's Fit Steps
+FREE_STEPS = 1500  # the free lobe form's fit: about 190 parameters per case where a latent has 6
 DEFAULT_CANDIDATES = ("view_gates", "real", "view_gates_real")  # weight folders beside the shipped decoder's
 LABELS = {"shipped": "shipped, closure form (the preview)", "shipped_full": "shipped in full (torch only)",
           "view_gates": "view-gated, own encoder", "real": "view-gated, real vectors, shipped encoder",
           "view_gates_real": "view-gated, real vectors, own encoder",
           "view_gates_real_l4": "the same with four GGX lobes",
           "view_gates_l4": "view-gated, four GGX lobes, own encoder",
-          "view_gates_l4_seed1": "the same, training seed 1"}
+          "view_gates_l4_seed1": "the same, training seed 1",
+          "view_gates_wide": "view-gated, head 128 wide", "view_gates_wide_seed1": "the same, training seed 1",
+          "lobe_form": "lobe form, free per case (no decoder beats it)"}
 
 
 def fitted(model: NeuralModel, vectors: np.ndarray, per_vector: int) -> tuple[torch.Tensor, float]:
@@ -90,6 +96,10 @@ def measure(chosen: list[Case], decoders: dict[str, NeuralModel], per_vector: in
     """Per case and scene: the noise floor and each preview's mean FLIP; and each decoder's fit loss."""
     vectors = np.stack([c.vector() for c in chosen])
     fits = {name: fitted(m, vectors, per_vector) for name, m in decoders.items()}
+    first = next(iter(decoders))
+    with fitting.deterministic():
+        free, params = free_lobes.fit_free(decoders[first], vectors, fits[first][0], FREE_STEPS, per_vector)
+    fits["lobe_form"] = params, fitting.held_out_loss(free, vectors, params)
     rows = []
     for i, case in enumerate(chosen):
         base = torch.tensor([case.base_color], dtype=torch.float32)
@@ -102,6 +112,8 @@ def measure(chosen: list[Case], decoders: dict[str, NeuralModel], per_vector: in
                 z = fits[name][0][i:i + 1]
                 for label, form in previews(name, model).items():
                     row[scene][label] = mean_flip(ref, ball_image(setup, NeuralBsdf(form, z, base), 0, sun))
+            bound = NeuralBsdf(free, params[i:i + 1], base)
+            row[scene]["lobe_form"] = mean_flip(ref, ball_image(setup, bound, 0, sun))
         rows.append(row)
         print(case.name, {s: {k: round(v, 4) for k, v in row[s].items()} for s in SCENES}, flush=True)
     return rows, {name: loss for name, (_, loss) in fits.items()}
@@ -186,10 +198,9 @@ def chart(report: dict, path: Path) -> None:
     for set_name, marker in zip(sets, "os"):
         summary = report["sets"][set_name]["summary"]
         for label in labels:
-            decoder = label.removesuffix("_full")
-            if label != decoder:
-                continue  # the full decoders are not previews: no gate cost to place them at
-            ax.scatter(seconds[decoder], summary[f"{next(iter(SCENES))}_all"][label]["mean"], color=colours[label],
+            if label not in seconds:
+                continue  # the full decoders and the lobe-form bound are not previews: no gate cost
+            ax.scatter(seconds[label], summary[f"{next(iter(SCENES))}_all"][label]["mean"], color=colours[label],
                        marker=marker, s=60, label=f"{LABELS.get(label, label)}, {set_name} cases")
     ax.set_xscale("log")
     ax.set_xlabel("torch s per million shading points (the preview's gates)")
