@@ -93,6 +93,7 @@ def run_farm(asset: Path, work: Path, extra: list[str], tree: Path, commit: str)
     that is not oversubscribed: with three runs on a shared machine, spinning would bill waiting as work."""
     listing, out = work / "list.txt", work / "out"
     listing.write_text(f"{asset}\n")
+    shutil.rmtree(out, ignore_errors=True)  # measured afresh: the farm skips what a run here published before
     start = time.monotonic()
     child = subprocess.Popen([sys.executable, str(tree / "batch" / "render_dataset.py"), "--input", str(listing),
                               "--output", str(out), "--max-texture", str(MAX_TEXTURE), "--workers", "1",
