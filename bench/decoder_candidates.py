@@ -146,7 +146,7 @@ def main() -> None:
     args = parser.parse_args()
     start = time.perf_counter()
     folders = args.weights or [trained.SHIPPED, *(trained.SHIPPED / c for c in DEFAULT_CANDIDATES)]
-    names = ["shipped" if f == trained.SHIPPED else f.name for f in folders]
+    names = ["shipped" if f.resolve() == trained.SHIPPED.resolve() else f.name for f in folders]
     decoders = {name: trained.load(f) for name, f in zip(names, folders)}
     setup = BallSetup.default(args.resolution, args.spp, 0)
     sets = {"table1": cases(0, args.per_type, 0), "real": real_cases(list(HELD_OUT_ASSETS), args.per_material)}
