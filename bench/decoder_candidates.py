@@ -47,7 +47,7 @@ from torch_models.neural.model import NeuralModel
 from torch_models.render.flip import mean_flip
 
 FIT_STEPS = 300  # the add-on's Fit Steps
-FREE_STEPS = 1500  # the free lobe form's fit: about 190 parameters per case where a latent has 6
+FREE_STEPS = 1500  # the free lobe form's fit: 168 parameters per case where a latent has 6
 DEFAULT_CANDIDATES = ("view_gates", "real", "view_gates_real")  # weight folders beside the shipped decoder's
 LABELS = {"shipped": "shipped, closure form (the preview)", "shipped_full": "shipped in full (torch only)",
           "view_gates": "view-gated, own encoder", "real": "view-gated, real vectors, shipped encoder",

@@ -6,8 +6,9 @@ price of the shared networks and the latent space. Here each material gets its o
 its own view gates, both linear in the view features (``hybrid.view_features``), so the slot
 weights still follow the view angle as a coat's Fresnel needs, and the gates read wi only:
 the result is exactly a set of closures, as a view-gated decoder's are. Fitted with the
-decoder's own loss, it bounds from below the error of every decoder with these lobes
-(issue 41's reach term, split in two by ``bench/decoder_candidates.py``).
+decoder's own loss, it measures how far the lobes themselves reach, which a decoder drawing
+them through shared networks and a 6D latent should not beat (issue 41's reach term, split in
+two by ``bench/decoder_candidates.py``).
 """
 from __future__ import annotations
 
