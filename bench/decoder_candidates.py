@@ -8,9 +8,9 @@ the torch renderer draws the ball of the analytic material (two seeds: the noise
 each decoder as the preview shows it: a decoder whose gates read both directions through its
 closure form (its gates held per shading point, ``closure_form``), beside itself in full; a
 view-gated decoder is its own closure form. Beside them, the first decoder's lobe form with its
-own parameters per case (``free_lobes``, ``FREE_STEPS`` steps from that decoder's fit): what no
-decoder with these lobes can beat, so a decoder's distance from it is what its shared networks
-and latent space cost. Two case sets:
+own parameters per case (``free_lobes``, ``FREE_STEPS`` steps from that decoder's fit): what a
+decoder with these lobes should not beat, so a decoder's distance from it is what its shared
+networks and latent space cost. Two case sets:
 
 * ``table1``: the agreement cases (``support/agreement_cases.py``, seed 0, ``--per-type`` per
   type, metals where the type allows);

@@ -16,6 +16,7 @@ must say "by hand", and only its presence in the document is checked.
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 
@@ -37,6 +38,35 @@ GEN_STATE = "torch_models/generator/weights/state.json"
 GUIDANCE_PER_TYPE = "summary/4"  # generate_guidance.json's summary rows: 1, 1.5, 2, 2.5, per type
 GUIDANCE_2 = "summary/2"
 MIN = 1 / 60
+WIDE = R + "decoder_candidates_wide.json"
+NUMBER = re.compile(r"\{([^{}]*)\}")  # a quoted number in braces
+
+
+def table_row(doc: str, row: str, report: str, keys: list[str]) -> tuple[DocNumber, ...]:
+    """One row per braced number of a quoted table row, each quoting the whole row with only its
+    own number in braces; ``keys`` in the order of the numbers."""
+    parts = NUMBER.split(row)
+    texts, numbers = parts[::2], parts[1::2]
+    if len(numbers) != len(keys):
+        raise ValueError(f"{len(numbers)} numbers and {len(keys)} keys in {row!r}")
+
+    def quote(braced: int) -> str:
+        cells = ((f"{{{n}}}" if i == braced else n) + t for i, (n, t) in enumerate(zip(numbers, texts[1:])))
+        return texts[0] + "".join(cells)
+
+    return tuple(DocNumber(doc, quote(i), report, k) for i, k in enumerate(keys))
+
+
+def candidate_keys(decoder: str, worst: tuple[str, ...] = ()) -> list[str]:
+    """decoder_candidates_wide.json's keys of one table row under the probe: the means of Table 1's
+    metals, the real metals and the real dielectrics, each metal mean of a set in ``worst`` followed
+    by its worst."""
+    out = []
+    for case_set, group in (("table1", "metals"), ("real", "metals"), ("real", "dielectrics")):
+        key = f"sets/{case_set}/summary/probe_{group}/{decoder}"
+        out += [f"{key}/mean", f"{key}/worst"] if group == "metals" and case_set in worst else [f"{key}/mean"]
+    return out
+
 
 ROWS: tuple[DocNumber, ...] = (
     # README: headline numbers
@@ -293,88 +323,34 @@ ROWS: tuple[DocNumber, ...] = (
     DocNumber(NEURAL, "and {0.099} and 0.084 on the", R + "decoder_candidates_l4.json", "sets/real/summary/probe_metals/view_gates_l4/mean"),
     DocNumber(NEURAL, "and 0.099 and {0.084} on the", R + "decoder_candidates_l4.json", "sets/real/summary/probe_metals/view_gates_l4_seed1/mean"),
     DocNumber(NEURAL, "real metals, against {0.094}.", R + "decoder_candidates_l4.json", "sets/real/summary/probe_metals/view_gates/mean"),
-    DocNumber(NEURAL, '| noise floor | {0.034} | 0.030 | 0.033 |', R + "decoder_candidates_wide.json", "sets/table1/summary/probe_metals/noise_floor/mean"),
-    DocNumber(NEURAL, '| noise floor | 0.034 | {0.030} | 0.033 |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_metals/noise_floor/mean"),
-    DocNumber(NEURAL, '| noise floor | 0.034 | 0.030 | {0.033} |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_dielectrics/noise_floor/mean"),
-    DocNumber(NEURAL, '(the preview) | {0.106} (0.128) | 0.105', R + "decoder_candidates_wide.json", "sets/table1/summary/probe_metals/shipped/mean"),
-    DocNumber(NEURAL, '(the preview) | 0.106 ({0.128}) | 0.105', R + "decoder_candidates_wide.json", "sets/table1/summary/probe_metals/shipped/worst"),
-    DocNumber(NEURAL, '(the preview) | 0.106 (0.128) | {0.105} (0.125)', R + "decoder_candidates_wide.json", "sets/real/summary/probe_metals/shipped/mean"),
-    DocNumber(NEURAL, '| 0.105 ({0.125}) | 0.039 |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_metals/shipped/worst"),
-    DocNumber(NEURAL, '| 0.105 (0.125) | {0.039} |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_dielectrics/shipped/mean"),
-    DocNumber(NEURAL, '| shipped in full (torch) | {0.072} | 0.081 | 0.037 |', R + "decoder_candidates_wide.json", "sets/table1/summary/probe_metals/shipped_full/mean"),
-    DocNumber(NEURAL, '| shipped in full (torch) | 0.072 | {0.081} | 0.037 |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_metals/shipped_full/mean"),
-    DocNumber(NEURAL, '| shipped in full (torch) | 0.072 | 0.081 | {0.037} |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_dielectrics/shipped_full/mean"),
-    DocNumber(NEURAL, 'head 32 wide (`a208ac7c`) | {0.068} | 0.094 | 0.042 |', R + "decoder_candidates_wide.json", "sets/table1/summary/probe_metals/view_gates/mean"),
-    DocNumber(NEURAL, 'head 32 wide (`a208ac7c`) | 0.068 | {0.094} | 0.042 |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_metals/view_gates/mean"),
-    DocNumber(NEURAL, 'head 32 wide (`a208ac7c`) | 0.068 | 0.094 | {0.042} |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_dielectrics/view_gates/mean"),
-    DocNumber(NEURAL, 'seed 0 (`eecdd5ba`) | {0.084} (0.146)', R + "decoder_candidates_wide.json", "sets/table1/summary/probe_metals/view_gates_wide/mean"),
-    DocNumber(NEURAL, 'seed 0 (`eecdd5ba`) | 0.084 ({0.146})', R + "decoder_candidates_wide.json", "sets/table1/summary/probe_metals/view_gates_wide/worst"),
-    DocNumber(NEURAL, 'seed 0 (`eecdd5ba`) | 0.084 (0.146) | **{0.070}** | 0.037 |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_metals/view_gates_wide/mean"),
-    DocNumber(NEURAL, 'seed 0 (`eecdd5ba`) | 0.084 (0.146) | **0.070** | {0.037} |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_dielectrics/view_gates_wide/mean"),
-    DocNumber(NEURAL, 'seed 1 (`e1514333`) | **{0.066}** | 0.071 | 0.036 |', R + "decoder_candidates_wide.json", "sets/table1/summary/probe_metals/view_gates_wide_seed1/mean"),
-    DocNumber(NEURAL, 'seed 1 (`e1514333`) | **0.066** | {0.071} | 0.036 |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_metals/view_gates_wide_seed1/mean"),
-    DocNumber(NEURAL, 'seed 1 (`e1514333`) | **0.066** | 0.071 | {0.036} |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_dielectrics/view_gates_wide_seed1/mean"),
-    DocNumber(NEURAL, 'free per case** | **{0.023}** (0.031)', R + "decoder_candidates_wide.json", "sets/table1/summary/probe_metals/lobe_form/mean"),
-    DocNumber(NEURAL, 'free per case** | **0.023** ({0.031})', R + "decoder_candidates_wide.json", "sets/table1/summary/probe_metals/lobe_form/worst"),
-    DocNumber(NEURAL, '(0.031) | **{0.036}** (0.044) |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_metals/lobe_form/mean"),
-    DocNumber(NEURAL, '(0.031) | **0.036** ({0.044}) |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_metals/lobe_form/worst"),
-    DocNumber(NEURAL, '(0.044) | **{0.033}** |', R + "decoder_candidates_wide.json", "sets/real/summary/probe_dielectrics/lobe_form/mean"),
+    # decoder_candidates_wide.json's table (neural-material.md, "How far the lobe form reaches")
+    *table_row(NEURAL, "| noise floor | {0.034} | {0.030} | {0.033} |", WIDE, candidate_keys("noise_floor")),
+    *table_row(NEURAL, "| shipped, closure form (the preview) | {0.106} ({0.128}) | {0.105} ({0.125}) | {0.039} |",
+               WIDE, candidate_keys("shipped", worst=("table1", "real"))),
+    *table_row(NEURAL, "| shipped in full (torch) | {0.072} | {0.081} | {0.037} |", WIDE, candidate_keys("shipped_full")),
+    *table_row(NEURAL, "| view-gated, head 32 wide (`a208ac7c`) | {0.068} | {0.094} | {0.042} |", WIDE,
+               candidate_keys("view_gates")),
+    *table_row(NEURAL, "| view-gated, head 128 wide, seed 0 (`eecdd5ba`) | {0.084} ({0.146}) | **{0.070}** | {0.037} |",
+               WIDE, candidate_keys("view_gates_wide", worst=("table1",))),
+    *table_row(NEURAL, "| the same, seed 1 (`e1514333`) | **{0.066}** | {0.071} | {0.036} |", WIDE,
+               candidate_keys("view_gates_wide_seed1")),
+    *table_row(NEURAL, "| **lobe form, free per case** | **{0.023}** ({0.031}) | **{0.036}** ({0.044}) | **{0.033}** |",
+               WIDE, candidate_keys("lobe_form", worst=("table1", "real"))),
     DocNumber(NEURAL, 'coated body included ({0.036} and', R + "decoder_candidates_wide.json", "sets/real/cases/0/probe/lobe_form"),
     DocNumber(NEURAL, 'body included (0.036 and\n{0.044} where', R + "decoder_candidates_wide.json", "sets/real/cases/1/probe/lobe_form"),
     DocNumber(NEURAL, 'every decoder reads {0.070}-0.130)', R + "decoder_candidates_wide.json", "sets/real/cases/1/probe/view_gates_wide_seed1"),
     DocNumber(NEURAL, 'every decoder reads 0.070-{0.130})', R + "decoder_candidates_wide.json", "sets/real/cases/0/probe/view_gates"),
-    DocNumber(NEURAL, '| worst point | {0.107} | 0.176 | 0.087 | 0.057 |', R + "neural_failure_modes_candidates.json", "decoders/0/worst/flip"),
-    DocNumber(NEURAL, '| worst point | 0.107 | {0.176} | 0.087 | 0.057 |', R + "neural_failure_modes_candidates.json", "decoders/1/worst/flip"),
-    DocNumber(NEURAL, '| worst point | 0.107 | 0.176 | {0.087} | 0.057 |', R + "neural_failure_modes_candidates.json", "decoders/2/worst/flip"),
-    DocNumber(NEURAL, '| worst point | 0.107 | 0.176 | 0.087 | {0.057} |', R + "neural_failure_modes_candidates.json", "decoders/3/worst/flip"),
-    DocNumber(NEURAL, '| 0 haze | {0.042} / 0.098 | 0.042 / 0.124 | 0.038 / 0.118 | 0.036 / 0.106 |', R + "fit_flip_candidates.json", "decoders/0/summary/0/median"),
-    DocNumber(NEURAL, '| 0 haze | 0.042 / {0.098} | 0.042 / 0.124 | 0.038 / 0.118 | 0.036 / 0.106 |', R + "fit_flip_candidates.json", "decoders/0/summary/0/worst"),
-    DocNumber(NEURAL, '| 0 haze | 0.042 / 0.098 | {0.042} / 0.124 | 0.038 / 0.118 | 0.036 / 0.106 |', R + "fit_flip_candidates.json", "decoders/1/summary/0/median"),
-    DocNumber(NEURAL, '| 0 haze | 0.042 / 0.098 | 0.042 / {0.124} | 0.038 / 0.118 | 0.036 / 0.106 |', R + "fit_flip_candidates.json", "decoders/1/summary/0/worst"),
-    DocNumber(NEURAL, '| 0 haze | 0.042 / 0.098 | 0.042 / 0.124 | {0.038} / 0.118 | 0.036 / 0.106 |', R + "fit_flip_candidates.json", "decoders/2/summary/0/median"),
-    DocNumber(NEURAL, '| 0 haze | 0.042 / 0.098 | 0.042 / 0.124 | 0.038 / {0.118} | 0.036 / 0.106 |', R + "fit_flip_candidates.json", "decoders/2/summary/0/worst"),
-    DocNumber(NEURAL, '| 0 haze | 0.042 / 0.098 | 0.042 / 0.124 | 0.038 / 0.118 | {0.036} / 0.106 |', R + "fit_flip_candidates.json", "decoders/3/summary/0/median"),
-    DocNumber(NEURAL, '| 0 haze | 0.042 / 0.098 | 0.042 / 0.124 | 0.038 / 0.118 | 0.036 / {0.106} |', R + "fit_flip_candidates.json", "decoders/3/summary/0/worst"),
-    DocNumber(NEURAL, '| 1 dust | {0.033} / 0.138 | 0.037 / 0.165 | 0.033 / 0.108 | 0.034 / 0.088 |', R + "fit_flip_candidates.json", "decoders/0/summary/1/median"),
-    DocNumber(NEURAL, '| 1 dust | 0.033 / {0.138} | 0.037 / 0.165 | 0.033 / 0.108 | 0.034 / 0.088 |', R + "fit_flip_candidates.json", "decoders/0/summary/1/worst"),
-    DocNumber(NEURAL, '| 1 dust | 0.033 / 0.138 | {0.037} / 0.165 | 0.033 / 0.108 | 0.034 / 0.088 |', R + "fit_flip_candidates.json", "decoders/1/summary/1/median"),
-    DocNumber(NEURAL, '| 1 dust | 0.033 / 0.138 | 0.037 / {0.165} | 0.033 / 0.108 | 0.034 / 0.088 |', R + "fit_flip_candidates.json", "decoders/1/summary/1/worst"),
-    DocNumber(NEURAL, '| 1 dust | 0.033 / 0.138 | 0.037 / 0.165 | {0.033} / 0.108 | 0.034 / 0.088 |', R + "fit_flip_candidates.json", "decoders/2/summary/1/median"),
-    DocNumber(NEURAL, '| 1 dust | 0.033 / 0.138 | 0.037 / 0.165 | 0.033 / {0.108} | 0.034 / 0.088 |', R + "fit_flip_candidates.json", "decoders/2/summary/1/worst"),
-    DocNumber(NEURAL, '| 1 dust | 0.033 / 0.138 | 0.037 / 0.165 | 0.033 / 0.108 | {0.034} / 0.088 |', R + "fit_flip_candidates.json", "decoders/3/summary/1/median"),
-    DocNumber(NEURAL, '| 1 dust | 0.033 / 0.138 | 0.037 / 0.165 | 0.033 / 0.108 | 0.034 / {0.088} |', R + "fit_flip_candidates.json", "decoders/3/summary/1/worst"),
-    DocNumber(NEURAL, '| 2 clearcoat | {0.039} / 0.098 | 0.046 / 0.093 | 0.044 / 0.077 | 0.037 / 0.091 |', R + "fit_flip_candidates.json", "decoders/0/summary/2/median"),
-    DocNumber(NEURAL, '| 2 clearcoat | 0.039 / {0.098} | 0.046 / 0.093 | 0.044 / 0.077 | 0.037 / 0.091 |', R + "fit_flip_candidates.json", "decoders/0/summary/2/worst"),
-    DocNumber(NEURAL, '| 2 clearcoat | 0.039 / 0.098 | {0.046} / 0.093 | 0.044 / 0.077 | 0.037 / 0.091 |', R + "fit_flip_candidates.json", "decoders/1/summary/2/median"),
-    DocNumber(NEURAL, '| 2 clearcoat | 0.039 / 0.098 | 0.046 / {0.093} | 0.044 / 0.077 | 0.037 / 0.091 |', R + "fit_flip_candidates.json", "decoders/1/summary/2/worst"),
-    DocNumber(NEURAL, '| 2 clearcoat | 0.039 / 0.098 | 0.046 / 0.093 | {0.044} / 0.077 | 0.037 / 0.091 |', R + "fit_flip_candidates.json", "decoders/2/summary/2/median"),
-    DocNumber(NEURAL, '| 2 clearcoat | 0.039 / 0.098 | 0.046 / 0.093 | 0.044 / {0.077} | 0.037 / 0.091 |', R + "fit_flip_candidates.json", "decoders/2/summary/2/worst"),
-    DocNumber(NEURAL, '| 2 clearcoat | 0.039 / 0.098 | 0.046 / 0.093 | 0.044 / 0.077 | {0.037} / 0.091 |', R + "fit_flip_candidates.json", "decoders/3/summary/2/median"),
-    DocNumber(NEURAL, '| 2 clearcoat | 0.039 / 0.098 | 0.046 / 0.093 | 0.044 / 0.077 | 0.037 / {0.091} |', R + "fit_flip_candidates.json", "decoders/3/summary/2/worst"),
-    DocNumber(NEURAL, '| 3 dust + coat | {0.050} / 0.114 | 0.045 / 0.102 | 0.038 / 0.112 | 0.035 / 0.112 |', R + "fit_flip_candidates.json", "decoders/0/summary/3/median"),
-    DocNumber(NEURAL, '| 3 dust + coat | 0.050 / {0.114} | 0.045 / 0.102 | 0.038 / 0.112 | 0.035 / 0.112 |', R + "fit_flip_candidates.json", "decoders/0/summary/3/worst"),
-    DocNumber(NEURAL, '| 3 dust + coat | 0.050 / 0.114 | {0.045} / 0.102 | 0.038 / 0.112 | 0.035 / 0.112 |', R + "fit_flip_candidates.json", "decoders/1/summary/3/median"),
-    DocNumber(NEURAL, '| 3 dust + coat | 0.050 / 0.114 | 0.045 / {0.102} | 0.038 / 0.112 | 0.035 / 0.112 |', R + "fit_flip_candidates.json", "decoders/1/summary/3/worst"),
-    DocNumber(NEURAL, '| 3 dust + coat | 0.050 / 0.114 | 0.045 / 0.102 | {0.038} / 0.112 | 0.035 / 0.112 |', R + "fit_flip_candidates.json", "decoders/2/summary/3/median"),
-    DocNumber(NEURAL, '| 3 dust + coat | 0.050 / 0.114 | 0.045 / 0.102 | 0.038 / {0.112} | 0.035 / 0.112 |', R + "fit_flip_candidates.json", "decoders/2/summary/3/worst"),
-    DocNumber(NEURAL, '| 3 dust + coat | 0.050 / 0.114 | 0.045 / 0.102 | 0.038 / 0.112 | {0.035} / 0.112 |', R + "fit_flip_candidates.json", "decoders/3/summary/3/median"),
-    DocNumber(NEURAL, '| 3 dust + coat | 0.050 / 0.114 | 0.045 / 0.102 | 0.038 / 0.112 | 0.035 / {0.112} |', R + "fit_flip_candidates.json", "decoders/3/summary/3/worst"),
-    DocNumber(NEURAL, '| 4 inner scattering | {0.031} / 0.040 | 0.032 / 0.044 | 0.030 / 0.039 | 0.030 / 0.038 |', R + "fit_flip_candidates.json", "decoders/0/summary/4/median"),
-    DocNumber(NEURAL, '| 4 inner scattering | 0.031 / {0.040} | 0.032 / 0.044 | 0.030 / 0.039 | 0.030 / 0.038 |', R + "fit_flip_candidates.json", "decoders/0/summary/4/worst"),
-    DocNumber(NEURAL, '| 4 inner scattering | 0.031 / 0.040 | {0.032} / 0.044 | 0.030 / 0.039 | 0.030 / 0.038 |', R + "fit_flip_candidates.json", "decoders/1/summary/4/median"),
-    DocNumber(NEURAL, '| 4 inner scattering | 0.031 / 0.040 | 0.032 / {0.044} | 0.030 / 0.039 | 0.030 / 0.038 |', R + "fit_flip_candidates.json", "decoders/1/summary/4/worst"),
-    DocNumber(NEURAL, '| 4 inner scattering | 0.031 / 0.040 | 0.032 / 0.044 | {0.030} / 0.039 | 0.030 / 0.038 |', R + "fit_flip_candidates.json", "decoders/2/summary/4/median"),
-    DocNumber(NEURAL, '| 4 inner scattering | 0.031 / 0.040 | 0.032 / 0.044 | 0.030 / {0.039} | 0.030 / 0.038 |', R + "fit_flip_candidates.json", "decoders/2/summary/4/worst"),
-    DocNumber(NEURAL, '| 4 inner scattering | 0.031 / 0.040 | 0.032 / 0.044 | 0.030 / 0.039 | {0.030} / 0.038 |', R + "fit_flip_candidates.json", "decoders/3/summary/4/median"),
-    DocNumber(NEURAL, '| 4 inner scattering | 0.031 / 0.040 | 0.032 / 0.044 | 0.030 / 0.039 | 0.030 / {0.038} |', R + "fit_flip_candidates.json", "decoders/3/summary/4/worst"),
-    DocNumber(NEURAL, '| 5 subcutaneous | {0.036} / 0.061 | 0.035 / 0.061 | 0.034 / 0.065 | 0.034 / 0.065 |', R + "fit_flip_candidates.json", "decoders/0/summary/5/median"),
-    DocNumber(NEURAL, '| 5 subcutaneous | 0.036 / {0.061} | 0.035 / 0.061 | 0.034 / 0.065 | 0.034 / 0.065 |', R + "fit_flip_candidates.json", "decoders/0/summary/5/worst"),
-    DocNumber(NEURAL, '| 5 subcutaneous | 0.036 / 0.061 | {0.035} / 0.061 | 0.034 / 0.065 | 0.034 / 0.065 |', R + "fit_flip_candidates.json", "decoders/1/summary/5/median"),
-    DocNumber(NEURAL, '| 5 subcutaneous | 0.036 / 0.061 | 0.035 / {0.061} | 0.034 / 0.065 | 0.034 / 0.065 |', R + "fit_flip_candidates.json", "decoders/1/summary/5/worst"),
-    DocNumber(NEURAL, '| 5 subcutaneous | 0.036 / 0.061 | 0.035 / 0.061 | {0.034} / 0.065 | 0.034 / 0.065 |', R + "fit_flip_candidates.json", "decoders/2/summary/5/median"),
-    DocNumber(NEURAL, '| 5 subcutaneous | 0.036 / 0.061 | 0.035 / 0.061 | 0.034 / {0.065} | 0.034 / 0.065 |', R + "fit_flip_candidates.json", "decoders/2/summary/5/worst"),
-    DocNumber(NEURAL, '| 5 subcutaneous | 0.036 / 0.061 | 0.035 / 0.061 | 0.034 / 0.065 | {0.034} / 0.065 |', R + "fit_flip_candidates.json", "decoders/3/summary/5/median"),
-    DocNumber(NEURAL, '| 5 subcutaneous | 0.036 / 0.061 | 0.035 / 0.061 | 0.034 / 0.065 | 0.034 / {0.065} |', R + "fit_flip_candidates.json", "decoders/3/summary/5/worst"),
+    *table_row(NEURAL, "| worst point | {0.107} | {0.176} | {0.087} | {0.057} |", R + "neural_failure_modes_candidates.json",
+               [f"decoders/{k}/worst/flip" for k in range(4)]),
+    # fit_flip_candidates.json's table: median / worst of the four decoders per type
+    *(row for t, cells in enumerate(("0 haze | {0.042} / {0.098} | {0.042} / {0.124} | {0.038} / {0.118} | {0.036} / {0.106}",
+                                     "1 dust | {0.033} / {0.138} | {0.037} / {0.165} | {0.033} / {0.108} | {0.034} / {0.088}",
+                                     "2 clearcoat | {0.039} / {0.098} | {0.046} / {0.093} | {0.044} / {0.077} | {0.037} / {0.091}",
+                                     "3 dust + coat | {0.050} / {0.114} | {0.045} / {0.102} | {0.038} / {0.112} | {0.035} / {0.112}",
+                                     "4 inner scattering | {0.031} / {0.040} | {0.032} / {0.044} | {0.030} / {0.039} | {0.030} / {0.038}",
+                                     "5 subcutaneous | {0.036} / {0.061} | {0.035} / {0.061} | {0.034} / {0.065} | {0.034} / {0.065}"))
+      for row in table_row(NEURAL, f"| {cells} |", R + "fit_flip_candidates.json",
+                           [f"decoders/{k}/summary/{t}/{s}" for k in range(4) for s in ("median", "worst")])),
     DocNumber(NEURAL, 'sharp-metal median ({0.076} against 0.092)', R + "fit_flip_candidates.json", "decoders/3/buckets/sharp_metal/median"),
     DocNumber(NEURAL, 'sharp-metal median (0.076 against {0.092})', R + "fit_flip_candidates.json", "decoders/0/buckets/sharp_metal/median"),
     DocNumber(NEURAL, 'the sharp metals do not move ({0.102})', R + "fit_flip_candidates.json", "decoders/2/buckets/sharp_metal/median"),

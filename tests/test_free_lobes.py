@@ -1,18 +1,25 @@
-"""The hybrid's lobe form with free parameters per material (``free_lobes``), the bound of every decoder."""
+"""The hybrid's lobe form with free parameters per material (``free_lobes``): what a decoder with
+these lobes should not beat."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from support.agreement_cases import cases
 from torch_models.neural import fitting, free_lobes, trained
 from torch_models.neural.closure_form import ClosureForm
+from torch_models.neural.model import NeuralModel
 
 
-def test_the_free_form_starts_at_the_decoders_closure_form() -> None:
+@pytest.fixture(scope="module")
+def model() -> NeuralModel:
+    return trained.load(trained.SHIPPED)
+
+
+def test_the_free_form_starts_at_the_decoders_closure_form(model: NeuralModel) -> None:
     """Started from latents, it draws what the decoder's closure form draws, up to the linear
     fit of the head and gates over the view angle."""
-    model = trained.load(trained.SHIPPED)
     free = free_lobes.free_model(model)
     metals = [c for c in cases(0, 2, 0) if "metal" in c.name]
     z = model.encoder(fitting.fitting_pool(model, np.stack([c.vector() for c in metals]))).detach()
@@ -29,9 +36,8 @@ def test_the_free_form_starts_at_the_decoders_closure_form() -> None:
     assert float((t_mine - t_theirs).abs().max()) < 0.01
 
 
-def test_the_free_forms_gates_read_the_view_alone() -> None:
+def test_the_free_forms_gates_read_the_view_alone(model: NeuralModel) -> None:
     """Its gates change with wi and not with wo: a renderer's closures draw it exactly."""
-    model = trained.load(trained.SHIPPED)
     free = free_lobes.free_model(model)
     params = torch.randn(4, free_lobes.parameter_count(free))
     wi, wo, other = (torch.nn.functional.normalize(torch.rand(4, 3) + torch.tensor([0.0, 0.0, 0.3]), dim=-1)
@@ -42,9 +48,8 @@ def test_the_free_forms_gates_read_the_view_alone() -> None:
         assert not torch.allclose(gates, free.decoder.gates_at(params, other, wo))
 
 
-def test_fitting_the_free_form_lowers_the_decoders_loss_on_coated_metals() -> None:
+def test_fitting_the_free_form_lowers_the_decoders_loss_on_coated_metals(model: NeuralModel) -> None:
     """More freedom per material fits better: held-out loss below the decoder's own, gates and all."""
-    model = trained.load(trained.SHIPPED)
     metals = [c for c in cases(0, 2, 0) if "metal" in c.name][:2]
     vectors = np.stack([c.vector() for c in metals])
     with fitting.deterministic():

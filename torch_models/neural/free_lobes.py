@@ -19,7 +19,6 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from ..brdf.frame import cos_theta
 from . import fitting
 from .closure_form import ClosureForm
 from .hybrid import HybridDecoder, LobeSampler, view_features
@@ -77,16 +76,15 @@ def start_from(model: NeuralModel, free: NeuralModel, z: Tensor, views: int = 16
     stratified set of directions) fitted linearly in the view features over ``views`` angles."""
     n, m = len(z), views
     cos = torch.linspace(0.05, 1.0, m)[:, None]
+    features = view_features(cos)
     wi = torch.cat([(1.0 - cos.square()).sqrt(), torch.zeros_like(cos), cos], -1).repeat(n, 1)
     zm = z.repeat_interleave(m, 0)
     cells = torch.stack(torch.meshgrid(torch.arange(grid), torch.arange(grid), indexing="ij"), -1).reshape(-1, 2)
     with torch.no_grad():
-        head = model.decoder.head(torch.cat([zm, view_features(cos_theta(wi))], -1))
+        head = model.decoder.head(torch.cat([zm, features.repeat(n, 1)], -1))
         gates = ClosureForm(model.decoder).gates_at(zm, wi, points=(cells + 0.5) / grid)
         logits = torch.logit(gates.flatten(1), eps=1e-4)
-        features = view_features(cos)
-        return torch.cat([view_fit(head.reshape(n, m, -1), features),
-                          view_fit(logits.reshape(n, m, -1), features)], -1)
+    return torch.cat([view_fit(head.reshape(n, m, -1), features), view_fit(logits.reshape(n, m, -1), features)], -1)
 
 
 def fit_free(model: NeuralModel, vectors: np.ndarray, z: Tensor, steps: int, per_vector: int, seed: int = 0,
