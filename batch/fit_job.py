@@ -1,8 +1,8 @@
 """Fit step of one asset (a torch process): every enhanced material of the work folder.
 
-Runs ``python -m torch_models fit`` in-process once per material folder
-(``materials/<name>/`` -> ``materials/<name>/neural/``), so torch is imported
-once per asset, and writes ``fit.json`` with each material's white-furnace
+Runs the fit (``torch_models.neural.fit_material``, what ``python -m torch_models fit``
+runs) once per material folder (``materials/<name>/`` -> ``materials/<name>/neural/``),
+in one process, so torch is imported once per asset, and writes ``fit.json`` with each material's white-furnace
 result. The fit refits a latent that gains energy under the energy bound and
 scales the f_neu of one that still does (``energy_scale``, see
 docs/neural-material.md) instead of dropping the material; how many passed as
@@ -25,26 +25,25 @@ def main(argv: list[str]) -> int:
     parser.add_argument("--decoder", type=Path, required=True)
     parser.add_argument("--steps", type=int, required=True)
     parser.add_argument("--cluster-step", type=float, required=True)
+    parser.add_argument("--budget", type=int, required=True)
     parser.add_argument("--threads", type=int, default=1)
     args = parser.parse_args(argv)
     sys.path.insert(0, str(REPO))
     import torch
 
-    from richmat_addon.core import material_folder, neural_folder
+    from richmat_addon.core import material_folder
     from richmat_addon.core.stage_clock import StageClock
-    from torch_models.cli import main as torch_models_main
+    from torch_models.neural import trained
+    from torch_models.neural.fit_material import FitSettings, fit_material
 
     clock = StageClock()
     torch.set_num_threads(args.threads)
+    model = trained.load(args.decoder)
+    settings = FitSettings(steps=args.steps, cluster_step=args.cluster_step, budget=args.budget)
     record: dict = {"torch_version": torch.__version__, "decoder": str(args.decoder), "materials": {}}
     for folder in sorted(p.parent for p in (args.work / "materials").glob(f"*/{material_folder.RECORD}")):
         with clock.stage("fit"):
-            code = torch_models_main(["fit", str(folder), "--out", str(folder / "neural"),
-                                      "--weights", str(args.decoder), "--steps", str(args.steps),
-                                      "--cluster-step", repr(args.cluster_step)])
-        if code != 0:
-            raise SystemExit(f"fit of {folder.name} failed with exit code {code}")
-        neural = neural_folder.read(folder / "neural").record
+            neural = fit_material(model, folder, folder / "neural", settings)
         record["materials"][folder.name] = {"furnace": neural["furnace"], "final_loss": neural["final_loss"],
                                             "fitted_vectors": neural["fitted_vectors"],
                                             "decoder_sha256": neural["decoder_sha256"],

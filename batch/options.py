@@ -12,6 +12,8 @@ import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from richmat_addon.core.texel_vectors import FIT_BUDGET
+
 from .cores import allowed_cores
 
 REPO = Path(__file__).resolve().parents[1]
@@ -85,6 +87,9 @@ def build_parser() -> argparse.ArgumentParser:
     add("--cluster-step", type=float, default=DEFAULT_CLUSTER_STEP,
         help="texel vectors that agree to this step per normalised parameter are fitted as one, sharing the "
              "fit's samples (bench/farm_cost.py sweeps it, docs/batch.md)")
+    add("--fit-budget", type=int, default=FIT_BUDGET,
+        help="vectors fitted per material at most: past it, representatives chosen in the encoder's latent "
+             "space, so the fit's cost does not grow with the texture (bench/fit_bounded.py); 0: no bound")
     add("--max-texture", type=int, default=512, help="larger textures are downscaled to this size (noted)")
     add("--max-triangles", type=int, default=DEFAULT_MAX_TRIANGLES,
         help="assets whose meshes have more triangles are refused with the count (a glTF before it is imported)")
@@ -119,6 +124,7 @@ class Settings:
     decoder_sha256: str
     fit_steps: int
     cluster_step: float
+    fit_budget: int
     max_texture: int
     seed: int
 
@@ -146,6 +152,8 @@ def validate(args: argparse.Namespace) -> None:
                          f"else): leave --graph out with --device {args.device}, and the native graph is rendered")
     if not 0 < args.cluster_step <= 1:
         raise ValueError("--cluster-step must be in (0, 1]")
+    if args.fit_budget < 0:
+        raise ValueError("--fit-budget must be 0 (no bound) or more")
     if args.timeout <= 0 or args.retries < 0:
         raise ValueError("--timeout must be positive and --retries non-negative")
     if not args.probe.is_file():
@@ -160,7 +168,7 @@ def settings_of(args: argparse.Namespace) -> Settings:
                     args.denoise_prefilter, args.denoise_quality, args.aov_samples, args.device, args.graph,
                     file_sha256(args.probe),
                     file_sha256(args.decoder / "weights.safetensors"), args.fit_steps, args.cluster_step,
-                    args.max_texture, args.seed)
+                    args.fit_budget, args.max_texture, args.seed)
 
 
 def cpu_threads(workers: int) -> int:

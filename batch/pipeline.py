@@ -135,7 +135,7 @@ def _stage_commands(asset: Asset, job: Job, work: Path) -> list[tuple[str, list[
                "--type", str(asset_type(asset.id, s.seed)), "--seed", str(s.seed),
                "--max-texture", str(s.max_texture), "--max-triangles", str(job.max_triangles)]
     fit = ["--work", str(work), "--decoder", str(job.decoder), "--steps", str(s.fit_steps),
-           "--cluster-step", repr(s.cluster_step), "--threads", str(threads)]
+           "--cluster-step", repr(s.cluster_step), "--budget", str(s.fit_budget), "--threads", str(threads)]
     render = ["render", "--work", str(work), "--asset-id", asset.id, "--frames", str(s.frames),
               "--resolution", str(s.resolution), "--samples", str(s.samples),
               "--adaptive-threshold", str(s.adaptive_threshold), "--denoise-prefilter", s.denoise_prefilter,

@@ -17,8 +17,9 @@ is ``{"event": "error", "message"}`` with exit code 2.
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
+
+from richmat_addon.core.texel_vectors import FIT_BUDGET, QUANT
 
 HELP = "fit the latent textures of an enhanced material against the frozen decoder"
 
@@ -31,84 +32,55 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--weights", type=Path, default=None, help="a training run folder (default: shipped)")
     parser.add_argument("--resume", action="store_true", help="continue an interrupted fit in OUT")
     parser.add_argument("--seed", type=int, default=0, help="seed of the direction samples (default: 0)")
-    parser.add_argument("--cluster-step", type=float, default=None,
+    parser.add_argument("--cluster-step", type=float, default=QUANT,
                         help="merge texel vectors that agree to this step per normalised parameter (default: "
-                             "1/256); a coarser step fits fewer vectors, and the energy check costs per vector")
+                             "1/256); a coarser step leaves fewer vectors to fit")
+    parser.add_argument("--budget", type=int, default=FIT_BUDGET,
+                        help=f"fit at most this many vectors (default: {FIT_BUDGET}); past it, representatives "
+                             "chosen by k-means in the encoder's latent space, each texel taking its "
+                             "representative's latent; 0: every merged vector, at a cost linear in them")
     parser.add_argument("--progress", choices=("bar", "jsonl"), default="bar",
                         help="a progress bar (default) or JSON lines on stdout (for the Blender add-on)")
 
 
 def run(args: argparse.Namespace) -> int:
-    import torch
-    from safetensors.torch import load_file, save_file
     from tqdm import tqdm
 
+    from richmat_addon.core import material_folder
     from richmat_addon.core.fit_error import grade
-    from richmat_addon.core.stage_clock import StageClock
 
-    from .cli import InputError, atomic_path, emit, emit_done
-    from .neural import energy, fit_error, fitting, material_vectors, trained
-    from .neural.mlp.energy import REFIT_STEPS
+    from .cli import InputError, emit, emit_done
+    from .neural import trained
+    from .neural.fit_material import FitInterrupted, FitSettings, fit_material
 
     jsonl = args.progress == "jsonl"
-    clock = StageClock()
+    settings = FitSettings(steps=args.steps, seed=args.seed, budget=args.budget,
+                           cluster_step=args.cluster_step)
     try:
-        with clock.stage("read"):
-            step = material_vectors.QUANT if args.cluster_step is None else args.cluster_step
-            mv = material_vectors.read_vectors(args.material, step)
-            model = trained.load(args.weights or trained.SHIPPED)
+        material_folder.read(args.material)  # a bad folder is named before the decoder is looked for
+        model = trained.load(args.weights or trained.SHIPPED)
+        with tqdm(total=args.steps, desc="fit", unit="step", disable=jsonl) as bar:
+            def progress(step: int, loss: float) -> None:
+                bar.update(step - bar.n)
+                bar.set_postfix(loss=f"{loss:.4f}")
+                if jsonl:
+                    emit("progress", step=step, total=args.steps, loss=loss)
+
+            record = fit_material(model, args.material, args.out, settings, args.resume, progress)
     except (ValueError, FileNotFoundError, KeyError) as exc:
         if jsonl:
             emit("error", message=str(exc))
         raise InputError(str(exc)) from None
-    args.out.mkdir(parents=True, exist_ok=True)
-    state = args.out / "fit_state.safetensors"
-    start, done = None, 0
-    if args.resume and state.exists():
-        saved = load_file(str(state))
-        start, done = saved["latents"], int(saved["step"])
-    latest = {"z": start, "step": done, "loss": float("nan")}
-
-    def progress(step: int, loss: float, z: torch.Tensor) -> None:
-        latest.update(z=z, step=done + step + 1, loss=loss)
-        bar.update(1)
-        bar.set_postfix(loss=f"{loss:.4f}")
-        if jsonl:
-            emit("progress", step=done + step + 1, total=args.steps, loss=loss)
-
-    with tqdm(total=args.steps, initial=done, desc=f"fit {len(mv.unique)} vectors", unit="step",
-              disable=jsonl) as bar:
-        try:
-            with clock.stage("fit"):
-                z = fitting.fit_latents(model, mv.unique, max(0, args.steps - done), seed=args.seed + done,
-                                        start=start, progress=progress)
-        except KeyboardInterrupt:
-            if latest["z"] is not None:
-                with atomic_path(state) as tmp:
-                    save_file({"latents": latest["z"], "step": torch.tensor(latest["step"])}, str(tmp))
-            print(f"interrupted at step {latest['step']}; --resume continues from {state}")
-            return 130
-    # The energy refit gets no more steps than the fit had: a quick fit stays quick, and what the
-    # short refit leaves over the bound is scaled, as the furnace check counts.
-    refit_steps = min(REFIT_STEPS, args.steps)
-    with clock.stage("energy"):
-        bounded = energy.fit_bounded(model, mv.unique, z, seed=args.seed, steps=refit_steps)
-    with clock.stage("error"):
-        errors = fit_error.vector_errors(model, mv.unique, bounded.z, bounded.check.energy_scale(), seed=args.seed)
-    timed = clock.record(whole_process=False)
-    for kind, parts in bounded.seconds.items():  # the energy check's own split: check, refit, recheck
-        timed[kind].update({f"energy_{part}": value for part, value in parts.items()})
-    record = material_vectors.write_fit(args.out, mv, bounded, model.digest, {
-        "material": os.path.relpath(args.material, args.out), "steps": args.steps, "refit_steps": refit_steps,
-        "final_loss": latest["loss"], **timed}, errors=errors)
-    state.unlink(missing_ok=True)
+    except FitInterrupted as stop:
+        print(stop)
+        return 130
     if jsonl:
         emit_done(args.out)
         return 0
-    print(f"fitted {len(mv.unique)} vectors ({mv.exact_unique} exact) for {record['texels']} texels; "
-          f"furnace: {record['furnace']['passed_as_fitted']}/{len(z)} pass as fitted, "
-          f"{record['furnace']['passed_after_refit']} after the energy refit, "
-          f"{record['furnace']['repaired_by_scaling']} scaled; fit error {record['fit_error']['mean']:.3f} "
+    furnace = record["furnace"]
+    print(f"fitted {record['fitted_vectors']} vectors for {record['merged_vectors']} merged "
+          f"({record['exact_unique_vectors']} exact) and {record['texels']} texels; furnace: "
+          f"{furnace['passed_as_fitted']}/{furnace['checked']} pass as fitted, {furnace['passed_after_refit']} after "
+          f"the energy refit, {furnace['repaired_by_scaling']} scaled; fit error {record['fit_error']['mean']:.3f} "
           f"({grade(record['fit_error']['mean'])}); wrote {args.out}")
     return 0
-

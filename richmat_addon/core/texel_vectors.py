@@ -7,9 +7,8 @@ quantisation step in the normalised parameter space are merged into their mean
 representative: both lie in the same cell). A constant material stays one vector. Torch-free, so the
 add-on's numpy encoder in a stock Blender dedupes as the torch fit does.
 
-A coarser step fits fewer vectors: the fit's energy check costs per vector, so
-the farm trades a measured accuracy for time with it (``--cluster-step``,
-bench/farm_cost.py).
+Past ``FIT_BUDGET`` merged vectors the fit chooses representatives instead
+(``torch_models/neural/representatives.py``), so its cost stops growing with the texture.
 """
 from __future__ import annotations
 
@@ -22,6 +21,10 @@ from . import material_folder
 from .schema import PARAMS, bounds
 
 QUANT = 1.0 / 256.0
+# Vectors a fit fits at most: past it, representatives (torch_models/neural/representatives.py).
+# 4096 vectors at 4 samples each fill the fit's 16 384-sample step, so a bounded fit costs what a
+# fit of any small material does (bench/fit_bounded.py charts the choice).
+FIT_BUDGET = 4096
 
 
 def normalise(vectors: np.ndarray) -> np.ndarray:
@@ -74,12 +77,17 @@ def texel_matrix(folder: Path) -> tuple[tuple[int, int] | None, np.ndarray]:
 
 
 def unique_rows(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(distinct rows, index of each row's) of a 2-D array; each row is compared as one byte string,
-    which sorts about 9x faster than ``np.unique(axis=0)`` on a 1k texture's 22 columns."""
+    """(distinct rows, index of each row's) of a 2-D array, in the byte order of the rows.
+
+    Each row is compared as one byte string of its varying columns only (a material holds most
+    parameters constant, and the string's length is what the sort pays for), which sorts many
+    times faster than ``np.unique(axis=0)`` on a texture's 22 columns."""
     rows = np.ascontiguousarray(rows)
-    as_bytes = rows.view(np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))).ravel()
-    distinct, inverse = np.unique(as_bytes, return_inverse=True)
-    return distinct.view(rows.dtype).reshape(-1, rows.shape[1]), inverse.ravel()
+    varying = np.flatnonzero((rows != rows[:1]).any(0)) if len(rows) else np.zeros(0, np.int64)
+    keys = np.ascontiguousarray(rows[:, varying] if len(varying) else rows[:, :1])
+    as_bytes = keys.view(np.dtype((np.void, keys.dtype.itemsize * keys.shape[1]))).ravel()
+    _, first, inverse = np.unique(as_bytes, return_index=True, return_inverse=True)
+    return rows[first], inverse.ravel()
 
 
 def read_vectors(folder: Path, step: float = QUANT) -> TexelVectors:
