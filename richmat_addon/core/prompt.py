@@ -126,7 +126,8 @@ class Reading:
 
 
 def _tokens(prompt: str) -> list[str]:
-    return re.findall(r"[a-z0-9']+|[,;.]", prompt.lower().replace("-", " ").replace("/", " "))
+    words = re.findall(r"[a-z0-9']+|[,;.]", prompt.lower().replace("-", " ").replace("/", " "))
+    return ["grey" if w == "gray" else w for w in words]  # the table spells the survey's grey
 
 
 def _phrase_at(tokens: list[str], i: int, phrases) -> str | None:
