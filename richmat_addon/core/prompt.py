@@ -188,9 +188,9 @@ def _colour(tokens: list[str], skip: set[str]) -> tuple[str, np.ndarray] | None:
     return None
 
 
-def read_prompt(prompt: str, metallic: bool = False) -> Reading:
-    """Everything a prompt names (module docstring); ``metallic``: the material is a metal whatever the words
-    say (a textured metal kept as it is), so the type keeps off dielectric-only lobes."""
+def read_prompt(prompt: str, metallic: bool | None = None) -> Reading:
+    """Everything a prompt names (module docstring). ``metallic``: whether the material the type goes on is a
+    metal (the type then keeps off dielectric-only lobes); None: a metal where the words name one."""
     tokens = _tokens(prompt)
     family_words = {w: f.name for f in base_materials.FAMILIES.values() for w in f.words}
     metal_words = {**{m: m for m in base_materials.METALS}, **base_materials.METAL_SPELLINGS}
@@ -214,7 +214,7 @@ def read_prompt(prompt: str, metallic: bool = False) -> Reading:
     found = _colour(tokens, skip)
     colour_name, colour = found if found else (metal, np.asarray(base_materials.METALS[metal])) if metal \
         else (None, None)
-    type_, warnings = prompt_type(prompt, metallic or family == "metal")
+    type_, warnings = prompt_type(prompt, family == "metal" if metallic is None else metallic)
     return Reading(prompt, type_, warnings, _strengths(tokens), colour_name,
                    None if colour is None else tuple(float(c) for c in colour), family, metal, finish)
 

@@ -145,7 +145,7 @@ def _upsample(values: Tensor, coverage: Tensor, factor: int) -> Tensor:
 
 
 @dataclass
-class _Space:
+class MaterialSpace:
     """A material's texture space at its latent texture's size: what the views and the prior need."""
 
     charts: Tensor  # (H, W) bool
@@ -168,14 +168,14 @@ def texture_rasters(inp: MeshInput, largest: int) -> list[UvRaster]:
     return rasters
 
 
-def _texture_spaces(inp: MeshInput, type_: int, largest: int, fixed: dict[str, float]) -> list[_Space]:
+def texture_spaces(inp: MeshInput, type_: int, largest: int, fixed: dict[str, float]) -> list[MaterialSpace]:
     """Every material's charts, maps and uplift prior (``fixed``: the settings the prompt's strength words
     set) at its latent texture's size."""
     spaces = []
     for material, raster in zip(inp.materials, texture_rasters(inp, largest)):
         base, rm = material.maps_at(raster.coverage.shape)
         rm = rm if inp.pbr_known else None  # the generator's PBR flag is one per view pixel: all or none
-        spaces.append(_Space(torch.from_numpy(raster.coverage), base, rm,
+        spaces.append(MaterialSpace(torch.from_numpy(raster.coverage), base, rm,
                              prior_latents(base, rm, type_, raster.normals, raster.positions, fixed)))
     return spaces
 
@@ -199,7 +199,7 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
         if type_ in METAL_REMAP:
             warnings += [f"material {m.name!r} is a metal: its prior takes Type {METAL_REMAP[type_]} instead"
                          for m in inp.materials if m.metallic]
-        spaces = _texture_spaces(inp, type_, texture_size, reading.settings() if strengths else {})
+        spaces = texture_spaces(inp, type_, texture_size, reading.settings() if strengths else {})
     res = cfg.model.size
     with clock.stage("view_choice"):
         cams = cameras or choose_cameras(inp.mesh, [TextureSpace(s.charts) for s in spaces], views,
