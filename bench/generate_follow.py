@@ -20,10 +20,11 @@ Measured:
    prompt names. Targets: dE <= 10, metals 100 %.
 2. **Strength**: per enhancement family (dust, haze, fuzz, scattering), prompts that differ only in
    "light" / "moderate" / "heavy", on the bare sphere and on the held-out Avocado (textured, kept).
-   The amount is the reflectance the enhancement adds: the mean difference, over charted texels,
-   three view directions and 48 cosine-distributed outgoing ones, between the decoded material's
-   f cos (times pi: albedo units) and the decoded plain PBR material's (dust, haze's wide lobe, fuzz
-   and scattering all add reflectance away from the mirror direction). Three ways: the
+   The amount is what the enhancement changes in the reflectance: the mean difference, over charted
+   texels and three view directions, between the decoded material's f cos (times pi: albedo units)
+   and the decoded plain PBR material's, at 48 cosine-distributed outgoing directions for dust, fuzz
+   and scattering (the reflectance they add), and for haze at 5 and 10 degrees from the mirror
+   direction (the highlight's shoulder it takes into its wide lobe: reflectance lost). Three ways: the
    prior alone (the rules with the strength words' settings, no model: for the canonical words and
    for synonyms), today's generation and the words' generation (prior + the model's residual), each
    at sampling seeds 0 and 1. A triple is ordered when light < moderate < heavy; the seed spread
@@ -36,7 +37,12 @@ generate_follow_strength.png (light / moderate / heavy, today's row above the wo
 Generations are ``generate``'s defaults (18 steps, 12 views, 4 samples averaged, guidance per type):
 about 80 of them, some 17 minutes on one thread.
 
-    python -m bench.generate_follow [--samples N] [--checkpoint DIR]
+``--accuracy`` asks whether reading the strengths costs accuracy where the prompt is a caption:
+the first eight held-out procedural objects (as bench/generate_eval.py makes them), each prompted
+with its own caption, which words its settings; PSNR over 16 views at 64 px against the reference,
+of the prior and the generation, both ways (docs/reports/generate_follow_accuracy.json).
+
+    python -m bench.generate_follow [--samples N] [--checkpoint DIR] [--accuracy]
 """
 from __future__ import annotations
 
@@ -51,12 +57,13 @@ import numpy as np
 import torch
 
 from bench.common import REPORTS, provenance, pyplot, save_chart, write_report
-from bench.generate_eval import render
+from bench.generate_eval import held_out, held_out_indices, psnr, render
 from richmat_addon.core import named_colours
 from richmat_addon.core.base_materials import METALS
 from richmat_addon.core.captions import STRENGTHS
 from richmat_addon.core.colour import ciede2000, linear_to_lab
 from richmat_addon.core.enhance import baseline
+from richmat_addon.core.enhancement_types import METAL_REMAP
 from richmat_addon.core.prompt import read_prompt
 from support.held_out_assets import SAMPLE_MODELS
 from torch_models.generator import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_VIEWS
@@ -95,6 +102,7 @@ REAL_STRENGTH = "Avocado"
 REAL_STRENGTH_FAMILIES = ("dust",)  # the issue's example; the other families on the sphere only (time)
 SYNONYMS = ("a little", "medium", "thick")  # the same three strengths in other words (prior only)
 GALLERY_COLOURS = 4  # colour prompts rendered in the gallery, beside the seven metals
+ACCURACY_VIEWS = 16  # views rendered per held-out procedural object, at 64 px (as bench/generate_eval.py)
 
 
 def bare_sphere(folder: Path) -> MeshInput:
@@ -122,13 +130,19 @@ def base_scores(inp: MeshInput, prompt: str, named: str, type_: int) -> dict:
     rm = material.roughness_metalness
     metalness = None if rm is None else float(rm[..., 1].mean())
     read = read_prompt(prompt, metallic=inp.metallic)
+    if inp.metallic:  # fuzz and scattering fall back on a metal, as the enhancer does
+        type_ = METAL_REMAP.get(type_, type_)
     return {"prompt": prompt, "named": named, "de": float(ciede2000(linear_to_lab(mean), linear_to_lab(want))),
             "base_color": mean.tolist(), "metalness": metalness, "metal_read": bool(metalness and metalness > 0.5),
             "type": read.type, "type_named": type_, "type_read": read.type == type_}
 
 
 class Reflectance:
-    """f cos of decoded latents at fixed direction pairs, per texel: what an enhancement adds to a material."""
+    """f cos of decoded latents at fixed direction pairs, per texel: what an enhancement adds to a material.
+
+    Dust, fuzz and scattering add reflectance away from the mirror direction (48 cosine-distributed
+    outgoing directions per view); haze moves it from the highlight's shoulder (5 and 10 degrees from the
+    mirror direction) into its wide lobe, so its amount is the reflectance lost there."""
 
     def __init__(self, texels: int = 1024) -> None:
         self.model = trained.load()
@@ -138,8 +152,14 @@ class Reflectance:
         r = np.sqrt(u)
         wo = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1 - u)], -1)
         wi = np.array([[math.sin(math.acos(c)), 0.0, c] for c in (1.0, 0.7, 0.4)])
-        self.wi = torch.tensor(np.repeat(wi, len(wo), 0), dtype=torch.float32)
-        self.wo = torch.tensor(np.tile(wo, (len(wi), 1)), dtype=torch.float32)
+        # the highlight's shoulder: 5 and 10 degrees from the mirror direction, in the plane of incidence
+        mirror = np.arctan2(-wi[:, 0], wi[:, 2])
+        shoulder = np.array([[math.sin(m + math.radians(d)), 0.0, math.cos(m + math.radians(d))]
+                             for m in mirror for d in (5, 10)])
+        self.pairs = {"diffuse": (torch.tensor(np.repeat(wi, len(wo), 0), dtype=torch.float32),
+                                  torch.tensor(np.tile(wo, (len(wi), 1)), dtype=torch.float32)),
+                      "shoulder": (torch.tensor(np.repeat(wi, 2, 0), dtype=torch.float32),
+                                   torch.tensor(shoulder, dtype=torch.float32))}
 
     def sample(self, latents: np.ndarray, base: np.ndarray, charts: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
         """The charted texels (a fixed subset) of a (H, W, 6) latent texture and its base colour."""
@@ -148,21 +168,25 @@ class Reflectance:
         base = np.broadcast_to(base, (*latents.shape[:2], 3)) if base.shape[:2] == (1, 1) else base
         return latents.reshape(-1, 6)[idx], base.reshape(-1, 3)[idx]
 
-    def of(self, latents: np.ndarray, base: np.ndarray) -> torch.Tensor:
-        """(texels, pairs, 3) f cos times pi."""
-        k, n = len(latents), len(self.wi)
+    def of(self, latents: np.ndarray, base: np.ndarray, pairs: str) -> torch.Tensor:
+        """(texels, pairs, 3) f cos times pi at the ``pairs`` directions."""
+        wi, wo = self.pairs[pairs]
+        k, n = len(latents), len(wi)
         z = torch.from_numpy(np.repeat(latents, n, 0).astype(np.float32))
         bsdf = NeuralBsdf(self.model, z, torch.from_numpy(np.repeat(base, n, 0).astype(np.float32)))
         with torch.no_grad():
-            f = bsdf.eval(self.wi.repeat(k, 1), self.wo.repeat(k, 1))
+            f = bsdf.eval(wi.repeat(k, 1), wo.repeat(k, 1))
         return (f * math.pi).reshape(k, n, 3)
 
-    def added(self, latents: np.ndarray, plain: np.ndarray, base: np.ndarray, charts: torch.Tensor) -> float:
-        """The mean reflectance the material adds to its plain PBR one: signed, so the sampling's zero-mean
+    def added(self, family: str, latents: np.ndarray, plain: np.ndarray, base: np.ndarray,
+              charts: torch.Tensor) -> float:
+        """The enhancement's amount against the plain PBR material: signed, so the sampling's zero-mean
         wobble averages out rather than adding up."""
         lat, b = self.sample(latents, base, charts)
         ref, _ = self.sample(plain, base, charts)
-        return float((self.of(lat, b) - self.of(ref, b)).mean())
+        if family == "haze":
+            return float((self.of(ref, b, "shoulder") - self.of(lat, b, "shoulder")).mean())
+        return float((self.of(lat, b, "diffuse") - self.of(ref, b, "diffuse")).mean())
 
 
 def plain_latents(inp: MeshInput, size: int) -> list[np.ndarray]:
@@ -197,7 +221,7 @@ def strength_runs(meshes: dict[str, MeshInput], model, cfg, args, reflectance: R
                         reading = read_prompt(prompt, metallic=inp.metallic)
                         spaces = gen.texture_spaces(inp, reading.type, size,
                                                     reading.settings() if method == "words" else {})
-                        amounts.append(reflectance.added(spaces[0].prior, plain[0], spaces[0].base_color,
+                        amounts.append(reflectance.added(family, spaces[0].prior, plain[0], spaces[0].base_color,
                                                          spaces[0].charts))
                     rows.append({"family": family, "mesh": mesh_name, "method": method, "way": kind, "seed": None,
                                  "prompts": prompts, "amounts": amounts})
@@ -208,7 +232,8 @@ def strength_runs(meshes: dict[str, MeshInput], model, cfg, args, reflectance: R
                         result = gen.generate(inp, prompt, model, cfg, seed, DEFAULT_STEPS, DEFAULT_VIEWS, None, size,
                                               samples=args.samples, strengths=method == "words")
                         m = result.materials[0]
-                        amounts.append(reflectance.added(m.latents, plain[0], spaces[0].base_color, m.charts))
+                        amounts.append(reflectance.added(family, m.latents, plain[0], spaces[0].base_color,
+                                                         m.charts))
                         latents.append(m.latents)
                         if seed == args.seeds[0]:
                             renders[(family, mesh_name, method, prompt)] = render(
@@ -288,6 +313,31 @@ def measure(args: argparse.Namespace, folder: Path) -> tuple[dict, dict]:
               "base": {m: base_summary(m) for m in ("today", "words")},
               "strength": strength_summary(strength), "base_rows": base_rows, "strength_rows": strength}
     return report, {"gallery": gallery_renders, "strength": strength_renders}
+
+
+def accuracy(args: argparse.Namespace) -> dict:
+    """Held-out procedural objects prompted with their own captions (which word their strengths), as
+    bench/generate_eval.py scores them: PSNR of each way's prior and generation against the reference."""
+    model, cfg = gen.load_generator(args.checkpoint)
+    size = cfg.corpus.texture_size
+    rows = []
+    for index in held_out_indices(args.objects, cfg.corpus.seed):
+        obj = held_out(index, cfg)
+        reference = render(obj.inp, obj.reference(size), ACCURACY_VIEWS, 64, args.spp)
+        mask = reference.sum(-1) > 0
+        row = {"asset_id": obj.asset_id, "prompt": obj.prompt, "type": obj.type}
+        for method in ("today", "words"):
+            result = gen.generate(obj.inp, obj.prompt, model, cfg, args.seeds[0], DEFAULT_STEPS, DEFAULT_VIEWS, None,
+                                  size, samples=args.samples, strengths=method == "words")
+            for way, latents in (("prior", result.prior), ("generated", result.latents)):
+                row[f"{method}, {way}"] = psnr(reference, render(obj.inp, latents, ACCURACY_VIEWS, 64, args.spp), mask)
+        rows.append(row)
+        print(f"{obj.asset_id} {obj.prompt!r}: " + ", ".join(f"{k} {v:.2f}" for k, v in row.items()
+                                                            if isinstance(v, float)), flush=True)
+    keys = [k for k in rows[0] if ", " in k]
+    return {"seed": args.seeds[0], "samples": args.samples, "views": ACCURACY_VIEWS, "objects": rows,
+            "mean_psnr": {k: float(np.mean([r[k] for r in rows])) for k in keys},
+            "worst_psnr": {k: float(np.min([r[k] for r in rows])) for k in keys}}
 
 
 def chart(report: dict, path: Path) -> None:
@@ -372,9 +422,19 @@ def main() -> int:
     ap.add_argument("--checkpoint", type=Path, default=gen.SHIPPED)
     ap.add_argument("--gallery-size", type=int, default=192)
     ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--out", type=Path, default=REPORTS / "generate_follow.json")
+    ap.add_argument("--accuracy", action="store_true",
+                    help="instead: held-out procedural objects with their own captions, PSNR against the reference "
+                         "for both ways (docs/reports/generate_follow_accuracy.json)")
+    ap.add_argument("--objects", type=int, default=8, help="held-out procedural objects for --accuracy")
+    ap.add_argument("--out", type=Path, default=None,
+                    help="report JSON (default: docs/reports/generate_follow[_accuracy].json)")
     args = ap.parse_args()
     torch.set_num_threads(1)
+    if args.accuracy:
+        out = args.out or REPORTS / "generate_follow_accuracy.json"
+        write_report(out, accuracy(args), [trained.SHIPPED], args.checkpoint)
+        return 0
+    args.out = args.out or REPORTS / "generate_follow.json"
     start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         report, renders = measure(args, Path(tmp))
