@@ -8,7 +8,7 @@ import torch
 import trimesh
 from PIL import Image
 
-from richmat_addon.core import material_folder, neural_folder
+from richmat_addon.core import material_folder, named_colours, neural_folder
 from richmat_addon.core.enhance import enhance
 from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.maps import ParamMap, PbrInputs
@@ -291,7 +291,8 @@ def test_a_bare_mesh_takes_the_colour_metal_and_finish_the_prompt_names(checkpoi
     trimesh.creation.uv_sphere(radius=0.5, count=[12, 12]).export(str(obj))  # no material: 0.8 grey until now
     runs = {}
     for name, prompt, base in (("gold", "brushed gold metal with a glossy clearcoat", "auto"),
-                               ("red", "red paint with heavy dust", "auto"), ("kept", "red paint", "mesh")):
+                               ("red", "red paint with heavy dust", "auto"), ("kept", "red paint", "mesh"),
+                               ("spelt", "vermilion paint", "auto")):  # the survey spells it "vermillion"
         out = tmp_path / name
         assert main(["generate", str(obj), "--prompt", prompt, "--out", str(out), "--views", "2", "--steps", "1",
                      "--texture-size", "16", "--checkpoint", str(checkpoint), "--no-preview", "--base", base]) == 0
@@ -303,6 +304,9 @@ def test_a_bare_mesh_takes_the_colour_metal_and_finish_the_prompt_names(checkpoi
     record, base = runs["red"]
     assert base[0, 0] > 0.5 and base[0, 1:].max() < 0.01 and record["reading"]["strengths"] == {"dust": "heavy"}
     assert np.allclose(runs["kept"][1], 0.8, atol=1e-3)  # --base mesh: the mesh's own grey
+    record, base = runs["spelt"]
+    assert record["reading"]["colour_name"].startswith("vermillion (for 'vermilion'")
+    assert np.allclose(base, named_colours.table()["vermillion"], atol=1e-3)
 
 
 def test_strength_words_set_the_priors_dust_and_the_old_draw_stays_without_them(checkpoint):

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -85,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
     from .generator import generate as gen
     from richmat_addon.core.prompt import read_prompt
 
+    from .generator.colour_words import with_colour_word
     from .generator.mesh_input import load_mesh, put_words_base, use_baked_material
     from .neural import trained
 
@@ -98,7 +100,8 @@ def run(args: argparse.Namespace) -> int:
         inp = load_mesh(args.mesh)
         if args.material is not None:
             use_baked_material(inp, args.material)
-        put_words_base(inp, read_prompt(args.prompt), args.base)
+        reading = with_colour_word(read_prompt(args.prompt))
+        put_words_base(inp, reading, args.base)
         decoder = trained.load()
     except (InputError, FileNotFoundError, ValueError, KeyError) as exc:
         if jsonl:
@@ -118,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         _write_unwrapped(inp, args.out / "mesh.glb")
     fields = {"prompt": args.prompt, "type": result.type, "seed": args.seed, "steps": args.steps,
               "views": args.views, "samples": args.samples, "guidance": result.guidance,
-              "reading": result.reading.record(), "base": args.base,
+              "reading": {**reading.record(), "type": result.type}, "base": args.base,
               "texture_size": args.texture_size, "coverage": result.coverage(),
               "cameras": result.cameras.camera_to_world.tolist(), "warnings": result.warnings,
               "notes": inp.notes, "seconds": result.seconds, "checkpoint": str(args.checkpoint or gen.SHIPPED),
@@ -131,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
     if jsonl:
         emit_done(args.out, type=result.type, warnings=result.warnings)
         return 0
-    print("read: " + "; ".join(result.reading.lines()))
+    print("read: " + "; ".join(replace(reading, type=result.type).lines()))
     for w in result.warnings:
         print(f"warning: {w}")
     for record in records:

@@ -83,6 +83,7 @@ class Reading:
     family: str | None = None  # a ``base_materials.FAMILIES`` name
     metal: str | None = None  # a ``base_materials.METALS`` name
     finish: str | None = None  # a ``base_materials.FINISHES`` word
+    unread_colour: str | None = None  # no colour read, and this unknown word stands before the material's word
 
     @property
     def metalness(self) -> float | None:
@@ -113,6 +114,9 @@ class Reading:
         if self.colour_name is not None:
             srgb = "".join(f"{round(float(v) * 255):02x}" for v in linear_to_srgb(self.colour))
             lines.append(f"colour: {self.colour_name} (#{srgb})")
+        elif self.unread_colour is not None:
+            lines.append(f"colour: {self.unread_colour!r} is not a colour name the table knows "
+                         "(the backend tries the nearest by meaning)")
         if self.family is not None or self.finish is not None:
             what = " ".join(w for w in (self.finish, self.metal or self.family) if w)
             lines.append(f"material: {what}, metalness {self.metalness or 0:g}, roughness {self.roughness:.2f}")
@@ -122,7 +126,7 @@ class Reading:
         return {"type": self.type, "strengths": self.strengths, "settings": self.settings(),
                 "colour_name": self.colour_name, "colour": None if self.colour is None else list(self.colour),
                 "family": self.family, "metal": self.metal, "finish": self.finish, "metalness": self.metalness,
-                "roughness": self.roughness}
+                "roughness": self.roughness, "unread_colour": self.unread_colour}
 
 
 def _tokens(prompt: str) -> list[str]:
@@ -215,8 +219,23 @@ def read_prompt(prompt: str, metallic: bool | None = None) -> Reading:
     colour_name, colour = found if found else (metal, np.asarray(base_materials.METALS[metal])) if metal \
         else (None, None)
     type_, warnings = prompt_type(prompt, family == "metal" if metallic is None else metallic)
+    unread = None if colour is not None else _unread_colour(tokens, set(family_words) | set(metal_words), skip)
     return Reading(prompt, type_, warnings, _strengths(tokens), colour_name,
-                   None if colour is None else tuple(float(c) for c in colour), family, metal, finish)
+                   None if colour is None else tuple(float(c) for c in colour), family, metal, finish, unread)
+
+
+_NOT_COLOURS = frozenset(("a", "an", "the", "my", "some", "old", "new", "with", "and", "of", "on", "in", "for"))
+
+
+def _unread_colour(tokens: list[str], material_words: set[str], known: set[str]) -> str | None:
+    """The word just before the first material word ("vermilion paint") when no vocabulary knows it."""
+    synonyms = {w for phrases in STRENGTH_SYNONYMS.values() for p in phrases for w in p.split()}
+    for i, token in enumerate(tokens[1:], 1):
+        if token in material_words:
+            word = tokens[i - 1]
+            unknown = word.isalpha() and word not in known | synonyms | _NOT_COLOURS | set(base_materials.FINISHES)
+            return word if unknown else None
+    return None
 
 
 def keeps_base(base_color: np.ndarray, choice: str) -> bool:

@@ -15,7 +15,7 @@ from torch import Tensor
 
 from richmat_addon.core.enhancement_types import METAL_REMAP
 from richmat_addon.core.maps import PbrInputs, ParamMap
-from richmat_addon.core.prompt import Reading, read_prompt
+from richmat_addon.core.prompt import read_prompt
 from richmat_addon.core.stage_clock import StageClock
 from richmat_addon.core.uv_raster import UvRaster, rasterize as uv_rasterize
 from . import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, guidance_for, text
@@ -98,7 +98,6 @@ class Generation:
     cameras: Cameras  # the views' cameras (``coverage.choose_cameras``)
     type: int
     guidance: float  # the classifier-free guidance it was sampled with
-    reading: Reading  # what the prompt was read as
     warnings: list[str] = field(default_factory=list)
     seconds: dict[str, float] = field(default_factory=dict)  # wall seconds per stage (``StageClock.wall``)
 
@@ -235,8 +234,7 @@ def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: Generator
         scales = np.split(energy.reshape(-1), np.cumsum([t.shape[0] * t.shape[1] for t in textures])[:-1])
     materials = [MaterialLatents(m.name, t, s.prior, scale.reshape(t.shape[:2]), p, s.charts)
                  for m, t, s, scale, p in zip(inp.materials, textures, spaces, scales, projections)]
-    generation = Generation(materials, (cond.prior[0] + residual).clamp(-1.0, 1.0), cams, type_, guidance, reading,
-                            warnings,
+    generation = Generation(materials, (cond.prior[0] + residual).clamp(-1.0, 1.0), cams, type_, guidance, warnings,
                             clock.wall)
     stats = generation.coverage()
     if stats["fallback"] > 0.05:
