@@ -103,9 +103,6 @@ class Reading:
             out[FAMILIES[name].setting] = strength_value(word, lo, hi)
         return out
 
-    def names_base(self) -> bool:
-        return self.colour is not None or self.family is not None or self.finish is not None
-
     def lines(self) -> list[str]:
         """What was read, a line per thing, as the add-on's panel and the CLI show it."""
         t = TYPES[self.type]
