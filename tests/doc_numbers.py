@@ -39,6 +39,8 @@ GUIDANCE_PER_TYPE = "summary/4"  # generate_guidance.json's summary rows: 1, 1.5
 GUIDANCE_2 = "summary/2"
 MIN = 1 / 60
 WIDE = R + "decoder_candidates_wide.json"
+FOLLOW, ACCURACY = R + "generate_follow.json", R + "generate_follow_accuracy.json"
+FOLLOWED, TODAY_FOLLOWED = "strength/words, generated", "strength/today, generated"
 NUMBER = re.compile(r"\{([^{}]*)\}")  # a quoted number in braces
 
 
@@ -231,6 +233,46 @@ ROWS: tuple[DocNumber, ...] = (
               "per_type_psnr/4/0"),
     DocNumber(GENERATOR, "from guidance 1 to 2 (42.6 to {37.6} dB)", R + "generate_guidance.json",
               "per_type_psnr/4/2"),
+
+    # issue 50: following the words (bench/generate_follow.py)
+    DocNumber(README, "named colours at CIEDE2000 {0.0} (today 33.9)", FOLLOW, "base/words/median_de"),
+    DocNumber(README, "named colours at CIEDE2000 0.0 (today {33.9})", FOLLOW, "base/today/median_de"),
+    DocNumber(README, "named metals {100} % (today 25 %)", FOLLOW, "base/words/metals_read", 100),
+    DocNumber(README, "named metals 100 % (today {25} %)", FOLLOW, "base/today/metals_read", 100),
+    DocNumber(README, "light < moderate < heavy in {10} of 10 triples (today 5)", FOLLOW, FOLLOWED + "/ordered"),
+    DocNumber(README, "light < moderate < heavy in 10 of {10} triples (today 5)", FOLLOW, FOLLOWED + "/triples"),
+    DocNumber(README, "in 10 of 10 triples (today {5})", FOLLOW, TODAY_FOLLOWED + "/ordered"),
+    DocNumber(README, "{1.2}-2.8x the seed spread", FOLLOW, "min:" + FOLLOWED + "/effect_over_spread/*"),
+    DocNumber(README, "1.2-{2.8}x the seed spread", FOLLOW, "max:" + FOLLOWED + "/effect_over_spread/*"),
+    DocNumber(GENERATOR, "`python -m bench.generate_follow`, {18} minutes on one thread", FOLLOW, "wall_seconds", MIN),
+    *table_row(GENERATOR, "| named colour, CIEDE2000 of the mean base colour (21 prompts x 4 meshes), median / worst "
+               "| {33.9} / {88.0} | **{0.0} / {0.0}** | 10 |", FOLLOW,
+               ["base/today/median_de", "base/today/worst_de", "base/words/median_de", "base/words/worst_de"]),
+    DocNumber(GENERATOR, "(gold, copper, brass, silver, aluminium, iron, chrome) | {25} % | **100 %**", FOLLOW,
+              "base/today/metals_read", 100),
+    DocNumber(GENERATOR, "(gold, copper, brass, silver, aluminium, iron, chrome) | 25 % | **{100} %**", FOLLOW,
+              "base/words/metals_read", 100),
+    DocNumber(GENERATOR, "| type read | {100} % | 100 % |", FOLLOW, "base/today/types_read", 100),
+    DocNumber(GENERATOR, "| type read | 100 % | {100} % |", FOLLOW, "base/words/types_read", 100),
+    *table_row(GENERATOR, "| strength triples ordered light < moderate < heavy, generated | {5} of {10} | "
+               "**{10} of {10}** | 90 % |", FOLLOW, [TODAY_FOLLOWED + "/ordered", TODAY_FOLLOWED + "/triples",
+                                                 FOLLOWED + "/ordered", FOLLOWED + "/triples"]),
+    *table_row(GENERATOR, "| effect (heavy - light) over the seed spread, per family | at most {0.26} | "
+               "**{1.2}-{2.8}** | > 1 |", FOLLOW, ["max:" + TODAY_FOLLOWED + "/effect_over_spread/*",
+                                                   "min:" + FOLLOWED + "/effect_over_spread/*",
+                                                   "max:" + FOLLOWED + "/effect_over_spread/*"]),
+    *table_row(GENERATOR, "its latents now move {0.0086} / {0.0092} from light to heavy, against {0.0019} / "
+               "{0.0025} today", FOLLOW, [f"strength_rows/{i}/latent_change_light_heavy" for i in (12, 13, 8, 9)]),
+    DocNumber(GENERATOR, "checks that change on eight of the held-out procedural objects: {40.7} against 40.6 dB",
+              ACCURACY, "mean_psnr/words, generated"),
+    DocNumber(GENERATOR, "checks that change on eight of the held-out procedural objects: 40.7 against {40.6} dB",
+              ACCURACY, "mean_psnr/today, generated"),
+    DocNumber(GENERATOR, "The prior alone orders {4} of the 5 triples", FOLLOW, "strength/words, prior/ordered"),
+    DocNumber(GENERATOR, "The prior alone orders 4 of the {5} triples", FOLLOW, "strength/words, prior/triples"),
+    *table_row(GENERATOR, "prior with the strengths read scores {38.7} dB against the drawn prior's {35.6}, and the "
+               "generation {40.7} dB against today's {40.6} (worst object {33.0} against {32.8})", ACCURACY,
+               ["mean_psnr/words, prior", "mean_psnr/today, prior", "mean_psnr/words, generated",
+                "mean_psnr/today, generated", "worst_psnr/words, generated", "worst_psnr/today, generated"]),
 
     # docs/neural-material.md
     DocNumber(NEURAL, "| 0 haze | **{0.035}** / **0.147** |", R + "fit_flip.json", "decoders/0/summary/0/median"),

@@ -71,3 +71,57 @@ def test_a_missing_generator_is_reported_with_the_fix(blender_run, extension_zip
     assert "no trained generator" in result["err"] and "train-generator" in result["err"]
     assert "Traceback" not in result["err"]
     assert result["nodes"] == {} and result["record"] == {}
+
+
+BARE = r'''
+bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16)
+obj = bpy.context.active_object
+obj.data.materials.append(bpy.data.materials.new("bare"))  # a new material: Principled BSDF at 0.8 grey
+scene = bpy.context.scene
+scene.richmat.output_dir = TMP + "/baked"
+scene.richmat.generate_steps = 2
+scene.richmat.prompt = PROMPT
+
+
+class Layout:
+    """Stands in for the panel's layout: keeps the labels it is given."""
+    labels = []
+    def column(self): return self
+    def box(self): return self
+    def label(self, text="", icon="NONE"): Layout.labels.append(text)
+    def prop(self, *args, **kwargs): pass
+    def operator(self, *args, **kwargs): pass
+    def separator(self): pass
+
+
+importlib.import_module(MODULE + ".blender.panels").draw_richmat(Layout(), bpy.context)
+bpy.context.preferences.addons[MODULE].preferences.generator_dir = CHECKPOINT
+res, err = run_op("generate_material")
+enhanced = obj.active_material
+core = lambda name: importlib.import_module(MODULE + ".core." + name)
+baked = core("material_folder").read(Path(enhanced.richmat.bake_dir))
+record = core("neural_folder").read(Path(enhanced.richmat.neural_dir)).record if enhanced.richmat.neural_dir else {}
+print("RESULT " + json.dumps(dict(
+    labels=Layout.labels, res=list(res), err=err, type=enhanced.richmat.type,
+    settings=json.loads(enhanced.richmat.record)["settings"],
+    base=np.asarray(baked.map("base_color").value).reshape(-1, 3).mean(0).tolist(),
+    metalness=float(np.mean(baked.map("metalness").value)), reading=record.get("reading"))))
+'''
+
+
+def test_a_bare_mesh_gets_the_coloured_metal_the_prompt_names_and_the_panel_shows_the_reading(
+        blender_run, extension_zip: Path, checkpoint: Path, tmp_path: Path):  # noqa: F811
+    import numpy as np
+
+    from richmat_addon.core.base_materials import METALS
+
+    prompt = "brushed gold metal with heavy haze and a glossy clearcoat"
+    result = blender_run(script(f"TMP = {str(tmp_path)!r}\nCHECKPOINT = {str(checkpoint)!r}\nPROMPT = {prompt!r}\n"
+                                + BARE, extension_zip))
+    assert "Type 2 (Clearcoat): heavy haze" in result["labels"]  # before it runs, what the words were read as
+    assert any(line.startswith("colour: gold (#") for line in result["labels"])
+    assert "material: brushed gold, metalness 1, roughness 0.35" in result["labels"]
+    assert result["res"] == ["FINISHED"], result["err"]
+    assert result["type"] == 2 and abs(result["settings"]["haze_weight"] - 0.35) < 1e-6  # heavy: the top third's middle
+    assert np.allclose(result["base"], METALS["gold"], atol=2e-3) and result["metalness"] == 1.0
+    assert result["reading"]["metal"] == "gold"  # the backend read the same words

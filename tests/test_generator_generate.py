@@ -8,7 +8,7 @@ import torch
 import trimesh
 from PIL import Image
 
-from richmat_addon.core import material_folder, neural_folder
+from richmat_addon.core import material_folder, named_colours, neural_folder
 from richmat_addon.core.enhance import enhance
 from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.maps import ParamMap, PbrInputs
@@ -282,3 +282,44 @@ def test_every_enhancement_type_has_a_guidance():
 
     guidance = guidance_by_type()
     assert sorted(guidance) == [t.index for t in TYPES] and min(guidance.values()) >= 1.0
+
+
+def test_a_bare_mesh_takes_the_colour_metal_and_finish_the_prompt_names(checkpoint, tmp_path):
+    from richmat_addon.core.base_materials import METALS
+
+    obj = tmp_path / "ball.obj"
+    trimesh.creation.uv_sphere(radius=0.5, count=[12, 12]).export(str(obj))  # no material: 0.8 grey until now
+    runs = {}
+    for name, prompt, base in (("gold", "brushed gold metal with a glossy clearcoat", "auto"),
+                               ("red", "red paint with heavy dust", "auto"), ("kept", "red paint", "mesh"),
+                               ("spelt", "vermilion paint", "auto")):  # the survey spells it "vermillion"
+        out = tmp_path / name
+        assert main(["generate", str(obj), "--prompt", prompt, "--out", str(out), "--views", "2", "--steps", "1",
+                     "--texture-size", "16", "--checkpoint", str(checkpoint), "--no-preview", "--base", base]) == 0
+        runs[name] = (neural_folder.read(out).record, read_exr(out / "base_color.exr").reshape(-1, 3))
+    record, base = runs["gold"]
+    assert np.allclose(base, METALS["gold"], atol=1e-3) and record["type"] == 2
+    assert record["reading"]["metalness"] == 1.0 and record["reading"]["roughness"] == pytest.approx(0.35)
+    assert any("metalness 1 from the prompt's words" in n for n in record["notes"])
+    record, base = runs["red"]
+    assert base[0, 0] > 0.5 and base[0, 1:].max() < 0.01 and record["reading"]["strengths"] == {"dust": "heavy"}
+    assert np.allclose(runs["kept"][1], 0.8, atol=1e-3)  # --base mesh: the mesh's own grey
+    record, base = runs["spelt"]
+    assert record["reading"]["colour_name"].startswith("vermillion (for 'vermilion'")
+    assert np.allclose(base, named_colours.table()["vermillion"], atol=1e-3)
+
+
+def test_strength_words_set_the_priors_dust_and_the_old_draw_stays_without_them(checkpoint):
+    from torch_models.generator import generate as gen
+    from torch_models.generator.procedural import make_asset
+    from torch_models.generator.mesh_input import MeshInput
+
+    model, cfg = gen.load_generator(checkpoint)
+    asset = make_asset(3, 16)
+    inp = MeshInput.from_pbr(asset.mesh, asset.pbr)
+    kw = dict(steps=1, views=2, texture_size=16, guard_energy=False)
+    priors = {w: gen.generate(inp, f"paint with {w} dust", model, cfg, **kw).prior for w in ("faint", "thick")}
+    drawn = [gen.generate(inp, f"paint with {w} dust", model, cfg, strengths=False, **kw).prior
+             for w in ("faint", "thick")]
+    assert np.abs(priors["faint"] - priors["thick"]).mean() > 0.01
+    assert np.array_equal(drawn[0], drawn[1])  # before strengths were read, the words moved no setting

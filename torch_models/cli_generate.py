@@ -20,7 +20,10 @@ inpainted and given the fallback for the material and the whole mesh, warnings,
 notes, timings). OUT/preview.png shows the mesh rendered with the generated
 materials.
 
-``--material DIR`` takes the base colour from a baked enhanced-material folder
+The prompt's words set what the mesh lacks (``--base``): on a material of one colour (or
+none: an OBJ without a material) the named colour, on any material without roughness and
+metalness the named family's and finish's; its strength words set the prior's worded
+settings (``prompt.read_prompt``). ``--material DIR`` takes the base colour from a baked enhanced-material folder
 (params.json, as the add-on's Bake writes it) instead of the mesh file, so the
 latents belong to the base colour the neural preview will use; its metalness
 turns fuzz/scattering prompts on metals into Types 1/3, as the enhancer does. ``--progress
@@ -32,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -69,6 +73,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--material", type=Path, default=None,
                         help="a baked enhanced-material folder whose base colour replaces the mesh file's "
                              "(and whose metalness keeps fuzz/scattering off metals)")
+    parser.add_argument("--base", choices=("auto", "mesh", "words"), default="auto",
+                        help="the base colour: the mesh's own (mesh), the prompt's colour, material and finish words "
+                             "(words), or auto (default): the mesh's where it is a texture, the words' where it is one "
+                             "colour or absent; roughness and metalness the file lacks come from the words either way")
     parser.add_argument("--progress", choices=("bar", "jsonl"), default="bar",
                         help="messages for people (default) or JSON lines on stdout (for the Blender add-on)")
 
@@ -76,7 +84,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from .cli import InputError, emit, emit_done
     from .generator import generate as gen
-    from .generator.mesh_input import load_mesh, use_baked_material
+    from richmat_addon.core.prompt import read_prompt
+
+    from .generator.colour_words import with_colour_word
+    from .generator.mesh_input import load_mesh, put_words_base, use_baked_material
     from .neural import trained
 
     jsonl = args.progress == "jsonl"
@@ -89,6 +100,8 @@ def run(args: argparse.Namespace) -> int:
         inp = load_mesh(args.mesh)
         if args.material is not None:
             use_baked_material(inp, args.material)
+        reading = with_colour_word(read_prompt(args.prompt))
+        put_words_base(inp, reading, args.base)
         decoder = trained.load()
     except (InputError, FileNotFoundError, ValueError, KeyError) as exc:
         if jsonl:
@@ -108,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
         _write_unwrapped(inp, args.out / "mesh.glb")
     fields = {"prompt": args.prompt, "type": result.type, "seed": args.seed, "steps": args.steps,
               "views": args.views, "samples": args.samples, "guidance": result.guidance,
+              "reading": {**reading.record(), "type": result.type}, "base": args.base,
               "texture_size": args.texture_size, "coverage": result.coverage(),
               "cameras": result.cameras.camera_to_world.tolist(), "warnings": result.warnings,
               "notes": inp.notes, "seconds": result.seconds, "checkpoint": str(args.checkpoint or gen.SHIPPED),
@@ -120,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
     if jsonl:
         emit_done(args.out, type=result.type, warnings=result.warnings)
         return 0
+    print("read: " + "; ".join(replace(reading, type=result.type).lines()))
     for w in result.warnings:
         print(f"warning: {w}")
     for record in records:

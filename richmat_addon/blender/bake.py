@@ -92,7 +92,7 @@ def bake(obj: bpy.types.Object, all_slots: bool, root: Path, relink: bool = True
     for p in plans:
         enhanced = p.original.richmat.enhanced
         mat = uplift.enhance_slot(p, _requested(enhanced), enhanced.richmat.seed, None, enhanced.richmat.amount,
-                                  enhanced.richmat.auto_touch)
+                                  enhanced.richmat.auto_touch, json.loads(enhanced.richmat.record or "{}").get("words"))
         mat.params.update(edited_constants(enhanced))
         folder = claim_folder(root, p.original)
         files = write_folder(folder, mat, p.original)

@@ -247,5 +247,6 @@ class GenerateJob(BackendJob):
     def arguments(self) -> list[str]:
         args = ["generate", str(self.mesh), "--prompt", self.prompt, "--material", str(self.material_dir),
                 "--out", str(self.out_dir), "--steps", str(self.steps), "--seed", str(self.seed),
-                "--no-preview"]  # Blender previews with its own OSL shader
+                "--no-preview",  # Blender previews with its own OSL shader
+                "--base", "mesh"]  # the bake already holds the base the words asked for
         return args + (["--checkpoint", self.checkpoint] if self.checkpoint else [])

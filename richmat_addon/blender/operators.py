@@ -13,7 +13,7 @@ import bpy
 from ..core.enhancement_types import DIELECTRIC_ONLY
 from ..core import material_folder, neural_encoder
 from ..core.folder_io import FormatError
-from ..core.prompt import prompt_type
+from ..core.prompt import read_prompt
 from . import bake, cycles_builder, mesh_maps, neural_assets, neural_backend, uplift
 from .pbr_source import InputProblem
 
@@ -351,7 +351,7 @@ class RICHMAT_OT_fit_neural(_BackendOperator, bpy.types.Operator):
 
 class RICHMAT_OT_generate_material(_BackendOperator, bpy.types.Operator):
     """Generate a neural material for the active mesh from the prompt (torch backend; Esc cancels).
-    Uplifts the active material to the type the prompt names and bakes it first"""
+    Uplifts the active material to the type, strengths and base material the prompt names and bakes it first"""
 
     bl_idname = "richmat.generate_material"
     bl_label = "Generate Material"
@@ -376,14 +376,16 @@ class RICHMAT_OT_generate_material(_BackendOperator, bpy.types.Operator):
     def _make_job(self, context: bpy.types.Context) -> neural_backend.BackendJob:
         s, obj = _settings(context), context.active_object
         backend = neural_assets.backend(context)  # before any change: a missing backend changes nothing
-        type_, _ = prompt_type(s.prompt)
+        type_ = read_prompt(s.prompt).type
         cycles = uplift.cycles_choice(context.scene)
+        words = {"prompt": s.prompt, "base": s.base_colour.lower()}  # the prompt's base material and strengths
         try:
-            uplift.uplift(obj, False, str(type_), s.seed, cycles)
+            uplift.uplift(obj, False, str(type_), s.seed, cycles, words=words)
         except InputProblem:
             if type_ not in DIELECTRIC_ONLY:
                 raise
-            uplift.uplift(obj, False, str(prompt_type(s.prompt, metallic=True)[0]), s.seed, cycles)  # a metal
+            uplift.uplift(obj, False, str(read_prompt(s.prompt, metallic=True).type), s.seed, cycles,
+                          words=words)  # a metal
         bake.bake(obj, False, bake.output_root(context.scene))
         baked = Path(_enhanced(context).richmat.bake_dir)
         mesh = baked / "generate_mesh.obj"

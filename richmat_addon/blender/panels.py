@@ -10,6 +10,7 @@ import bpy
 
 from ..core import schema
 from ..core.enhancement_types import TYPES
+from ..core.prompt import read_prompt
 from . import cycles_builder, fit_error_view, preview_neural, uplift
 
 _LOBE_TITLES = {"dust": "Dust / Fuzz", "coat": "Clearcoat", "conductor": "Conductor", "mix": "Metalness",
@@ -45,6 +46,11 @@ def draw_richmat(layout: bpy.types.UILayout, context: bpy.types.Context) -> None
     col.operator("richmat.fit_neural", icon="NETWORK_DRIVE")
     draw_fit_error(col, context)
     col.prop(s, "prompt")
+    if s.prompt.strip():
+        box = col.box()  # what Generate will make of the words, before it runs: a misread shows at once
+        for line in read_prompt(s.prompt).lines():
+            box.label(text=line)
+    col.prop(s, "base_colour")
     col.prop(s, "generate_steps")
     col.operator("richmat.generate_material", icon="MATERIAL")
     col.operator("richmat.preview_neural", icon="HIDE_OFF")

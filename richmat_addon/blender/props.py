@@ -33,8 +33,16 @@ class RichmatSceneSettings(bpy.types.PropertyGroup):
         description="Optimisation steps of the neural fit")
     prompt: bpy.props.StringProperty(
         name="Prompt", default="",
-        description="What the generated material looks like; keywords pick the enhancement "
-                    "(dust, clear coat, velvet/fuzz, subsurface/waxy), e.g. \"red paint with light dust\"")
+        description="What the generated material looks like: colour, material and finish (\"brushed gold metal\"), "
+                    "the enhancement (dust, clear coat, velvet/fuzz, subsurface/waxy) and its strength "
+                    "(light, moderate, heavy), e.g. \"red paint with light dust\"")
+    base_colour: bpy.props.EnumProperty(
+        name="Base", default="AUTO",
+        items=[("AUTO", "Auto", "Keep a textured base colour; a material of one colour (a new mesh's default) "
+                                "takes the colour, material and finish the prompt names"),
+               ("MESH", "Keep the Mesh's", "Keep the material's base colour (roughness and metalness too)"),
+               ("WORDS", "From the Prompt", "The colour, material and finish the prompt names, over the material's")],
+        description="Where Generate Material's base colour comes from")
     generate_steps: bpy.props.IntProperty(
         name="Sampling Steps", default=18, min=1, soft_max=64,
         description="Diffusion sampling steps of Generate Material (fewer: faster, blurrier)")

@@ -22,6 +22,7 @@ import numpy as np
 from ..core.enhance import enhance, resolve_type
 from ..core.enhancement_types import DUST_TYPES, METAL_TYPES, index_ranges
 from ..core.maps import EnhancedMaterial, ParamMap, PbrInputs
+from ..core.prompt import Reading, base_over, keeps_base, read_prompt
 from . import cycles_builder, mesh_maps
 from .pbr_source import InputProblem, PbrSources, load_pbr, read_sources
 
@@ -79,10 +80,17 @@ def plan(obj: bpy.types.Object, all_slots: bool) -> list[SlotPlan]:
 
 
 def enhance_slot(p: SlotPlan, requested: str, seed: int, max_size: int | None, amount: float = 1.0,
-                 touch: bool | None = None) -> EnhancedMaterial:
+                 touch: bool | None = None, words: dict[str, str] | None = None) -> EnhancedMaterial:
     """The enhanced maps of one slot, scaled by ``amount`` and, for Auto (or ``touch``), by the lighter
-    touch on dark texels (``core.enhance.auto_touch``); dust types get world maps rasterised from the mesh."""
+    touch on dark texels (``core.enhance.auto_touch``); dust types get world maps rasterised from the mesh.
+    ``words`` ({"prompt", "base"}: Generate's) put the prompt's base material on the slot where ``base``
+    says (``prompt.keeps_base``) and fix the settings its strength words name."""
     pbr = load_pbr(p.sources, max_size)
+    fixed = None
+    if words:
+        reading = read_prompt(words["prompt"])
+        pbr = with_words_base(pbr, reading, words["base"])
+        fixed = reading.settings()
     type_, note = resolve_type(pbr, "auto" if requested == "AUTO" else int(requested), seed)
     if requested != "AUTO" and type_ != int(requested):
         raise InputProblem(f"{note}; choose a type in {index_ranges(METAL_TYPES)} or Auto for metals")
@@ -91,7 +99,17 @@ def enhance_slot(p: SlotPlan, requested: str, seed: int, max_size: int | None, a
     if type_ in DUST_TYPES and size is not None and mesh_maps.has_uvs(p.obj):
         normals, positions, _ = mesh_maps.world_maps([(p.obj, [p.slot_index])], size)
     return enhance(pbr, type_, seed, world_normals=normals, world_positions=positions, amount=amount,
-                   touch=requested == "AUTO" if touch is None else touch)
+                   touch=requested == "AUTO" if touch is None else touch, fixed=fixed)
+
+
+def with_words_base(pbr: PbrInputs, reading: Reading, choice: str) -> PbrInputs:
+    """``pbr`` with the base material the prompt names put on (``prompt.base_over``); Blender's
+    Principled BSDF always says its roughness and metalness, so the words replace them only where the
+    base colour is the words' too."""
+    maps = (pbr.base_color, pbr.roughness, pbr.metalness)
+    values = base_over(reading, *(m.value for m in maps), keep=keeps_base(pbr.base_color.value, choice))
+    base, rough, metal = (m if v is m.value else ParamMap.constant(*np.ravel(v)) for m, v in zip(maps, values))
+    return PbrInputs(pbr.name, base, rough, metal)
 
 
 def _texture_size(pbr: PbrInputs) -> tuple[int, int] | None:
@@ -254,18 +272,19 @@ def keep_cycles_renderable(scene: bpy.types.Scene) -> list[str]:
 
 
 def uplift(obj: bpy.types.Object, all_slots: bool, requested: str, seed: int, cycles: cycles_builder.Graph,
-           max_size: int | None = PREVIEW_SIZE, amount: float = 1.0, touch: bool | None = None) -> list[str]:
+           max_size: int | None = PREVIEW_SIZE, amount: float = 1.0, touch: bool | None = None,
+           words: dict[str, str] | None = None) -> list[str]:
     """Uplift the object's materials, Cycles reading ``cycles``; returns one line per material for the report.
 
     Every slot is checked and enhanced before the first datablock is created, so
     bad input anywhere changes nothing.
     """
-    work = [(p, enhance_slot(p, requested, seed, max_size, amount, touch)) for p in plan(obj, all_slots)]
+    work = [(p, enhance_slot(p, requested, seed, max_size, amount, touch, words)) for p in plan(obj, all_slots)]
     lines = []
     for p, mat in work:
         textures = {name: preview_image(f"richmat {p.original.name} {name}", pmap)
                     for name, pmap in textured_maps(mat).items()}
-        record = {"requested_type": requested, "settings": mat.settings}
+        record = {"requested_type": requested, "settings": mat.settings, **({"words": words} if words else {})}
         try:
             enhanced = build_enhanced(p, mat, textures, record, cycles)
         except (RuntimeError, KeyError, ValueError):

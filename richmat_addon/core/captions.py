@@ -40,9 +40,26 @@ def colour_name(linear_rgb: Sequence[float]) -> str:
     return ("dark " if v < 0.45 else "pale " if s < 0.35 else "") + hue
 
 
+STRENGTHS = ("light", "moderate", "heavy")  # a worded setting's thirds of its drawn range, in order
+# What else a prompt may say for each strength word (whole words or phrases, before the family's word).
+STRENGTH_SYNONYMS: dict[str, tuple[str, ...]] = {
+    "light": ("light", "lightly", "a little", "a bit of", "a touch of", "a hint of", "slight", "slightly", "faint",
+              "faintly", "thin", "subtle", "soft", "barely", "traces of"),
+    "moderate": ("moderate", "moderately", "medium", "some", "fair", "noticeable"),
+    "heavy": ("heavy", "heavily", "thick", "thickly", "caked", "lots of", "a lot of", "much", "strong", "strongly",
+              "dense", "deep", "very", "covered", "layers of", "plenty of"),
+}
+
+
 def _strength(value: float, lo: float, hi: float) -> str:
     t = (value - lo) / (hi - lo) if hi > lo else 0.5
-    return "light" if t < 1 / 3 else "moderate" if t < 2 / 3 else "heavy"
+    return STRENGTHS[min(int(t * len(STRENGTHS)), len(STRENGTHS) - 1)] if t >= 0 else STRENGTHS[0]
+
+
+def strength_value(word: str, lo: float, hi: float) -> float:
+    """The setting a strength word stands for: the middle of its third of [lo, hi], the caption's word
+    read back (``_strength(strength_value(w, lo, hi), lo, hi) == w``)."""
+    return lo + (hi - lo) * (STRENGTHS.index(word) + 0.5) / len(STRENGTHS)
 
 
 def enhancement_keywords(settings: dict[str, Any]) -> list[str]:

@@ -41,9 +41,10 @@ def _rng(seed: int, name: str, purpose: str) -> np.random.Generator:
     return np.random.default_rng([seed, int.from_bytes(digest[:8], "little")])
 
 
-def _draw(rng: np.random.Generator, family: str) -> dict[str, float]:
-    """The settings ``family`` draws (``Family.draws``), in its order."""
-    return {d.key: rng.uniform(d.lo, d.hi) for d in FAMILIES[family].draws}
+def _draw(rng: np.random.Generator, family: str, fixed: dict[str, float]) -> dict[str, float]:
+    """The settings ``family`` draws (``Family.draws``), in its order, those in ``fixed`` replaced after
+    their draw (so fixing one leaves every other draw as it was)."""
+    return {d.key: fixed.get(d.key, rng.uniform(d.lo, d.hi)) for d in FAMILIES[family].draws}
 
 
 def resolve_type(pbr: PbrInputs, requested: int | str, seed: int) -> tuple[int, str]:
@@ -162,10 +163,12 @@ def scale_enhancement(mat: EnhancedMaterial, plain: EnhancedMaterial, amount: Pa
 
 def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
             world_normals: ParamMap | None = None,
-            world_positions: ParamMap | None = None, amount: float = 1.0, touch: bool = False) -> EnhancedMaterial:
+            world_positions: ParamMap | None = None, amount: float = 1.0, touch: bool = False,
+            fixed: dict[str, float] | None = None) -> EnhancedMaterial:
     """Enhance one material, scaled toward the PBR material by ``amount`` in [0, 1] (1: the rules as drawn),
-    times ``auto_touch`` per texel with ``touch`` (what Auto asks for). Types 4/5 on a metal raise
-    ValueError (see resolve_type)."""
+    times ``auto_touch`` per texel with ``touch`` (what Auto asks for); ``fixed`` settings replace their draws
+    (a prompt's strength words, ``prompt.Reading.settings``). Types 4/5 on a metal raise ValueError (see
+    resolve_type)."""
     resolved, note = resolve_type(pbr, type_, seed)
     if type_ != "auto" and resolved != int(type_):
         raise ValueError(f"{pbr.name}: {note}. Choose a type in {index_ranges(METAL_TYPES)} for metals.")
@@ -174,7 +177,8 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
     rough = _clean(pbr.roughness, 0.0, 1.0, "roughness", pbr.name)
     metal = _clean(pbr.metalness, 0.0, 1.0, "metalness", pbr.name)
 
-    s = {"type": resolved, "type_note": note, "seed": seed, **_draw(rng, BASE_FAMILY)}
+    fixed = fixed or {}
+    s = {"type": resolved, "type_note": note, "seed": seed, **_draw(rng, BASE_FAMILY, fixed)}
     lum = base @ np.array(LUMINANCE, np.float32)
     values: dict[str, np.ndarray | float] = {
         "spec_color": base, "edge_tint": s["edge_tint"], "metalness": metal,
@@ -185,15 +189,15 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
         del values["spec_color"]  # no conductor anywhere: keep the constant default
     lobes = TYPES[resolved].lobes
     if "dust" in lobes:
-        s.update(_draw(rng, "dust"))
+        s.update(_draw(rng, "dust", fixed))
         values["dust_weight"] = _dust_weight(pbr, rng, s["dust_peak"], world_normals,
                                              world_positions, s)
         values["dust_roughness"] = s["dust_roughness"]
     if "fuzz" in lobes:
-        s.update(_draw(rng, "fuzz"))
+        s.update(_draw(rng, "fuzz", fixed))
         values["dust_weight"], values["dust_roughness"] = s["fuzz_weight"], s["fuzz_roughness"]
     if "coat" in lobes:
-        s.update(_draw(rng, "coat"), coat_damage=str(rng.choice(["none"] + sorted(masks.DAMAGE_MASKS))))
+        s.update(_draw(rng, "coat", fixed), coat_damage=str(rng.choice(["none"] + sorted(masks.DAMAGE_MASKS))))
         damage_shape = _mask_shape(pbr, world_normals)
         if damage_shape is None:
             s["coat_damage"] = "none"
@@ -201,7 +205,7 @@ def enhance(pbr: PbrInputs, type_: int | str = "auto", seed: int = 0,
         values["coat_weight"] = 1.0 if s["coat_damage"] == "none" else \
             1.0 - _uv_mask(masks.DAMAGE_MASKS[s["coat_damage"]], damage_shape, rng)
     if "scatter" in lobes:
-        s.update(_draw(rng, "scatter"))
+        s.update(_draw(rng, "scatter", fixed))
         # Gentle desaturation: 30 % toward grey, then lifted a little toward white.
         values["scatter_color"] = 0.85 * (0.7 * base + 0.3 * lum[..., None]) + 0.15
         values.update(inner_weight=s["inner_weight"], inner_roughness=s["inner_roughness"],

@@ -15,7 +15,7 @@ from torch import Tensor
 
 from richmat_addon.core.enhancement_types import METAL_REMAP
 from richmat_addon.core.maps import PbrInputs, ParamMap
-from richmat_addon.core.prompt import prompt_type
+from richmat_addon.core.prompt import read_prompt
 from richmat_addon.core.stage_clock import StageClock
 from richmat_addon.core.uv_raster import UvRaster, rasterize as uv_rasterize
 from . import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, guidance_for, text
@@ -144,7 +144,7 @@ def _upsample(values: Tensor, coverage: Tensor, factor: int) -> Tensor:
 
 
 @dataclass
-class _Space:
+class MaterialSpace:
     """A material's texture space at its latent texture's size: what the views and the prior need."""
 
     charts: Tensor  # (H, W) bool
@@ -167,35 +167,38 @@ def texture_rasters(inp: MeshInput, largest: int) -> list[UvRaster]:
     return rasters
 
 
-def _texture_spaces(inp: MeshInput, type_: int, largest: int) -> list[_Space]:
-    """Every material's charts, maps and uplift prior at its latent texture's size."""
+def texture_spaces(inp: MeshInput, type_: int, largest: int, fixed: dict[str, float]) -> list[MaterialSpace]:
+    """Every material's charts, maps and uplift prior (``fixed``: the settings the prompt's strength words
+    set) at its latent texture's size."""
     spaces = []
     for material, raster in zip(inp.materials, texture_rasters(inp, largest)):
         base, rm = material.maps_at(raster.coverage.shape)
         rm = rm if inp.pbr_known else None  # the generator's PBR flag is one per view pixel: all or none
-        spaces.append(_Space(torch.from_numpy(raster.coverage), base, rm,
-                             prior_latents(base, rm, type_, raster.normals, raster.positions)))
+        spaces.append(MaterialSpace(torch.from_numpy(raster.coverage), base, rm,
+                             prior_latents(base, rm, type_, raster.normals, raster.positions, fixed)))
     return spaces
 
 
 def generate(inp: MeshInput, prompt: str, model: LatentGenerator, cfg: GeneratorTrainConfig, seed: int = 0,
              steps: int = DEFAULT_STEPS, views: int = DEFAULT_VIEWS, guidance: float | None = None,
              texture_size: int = DEFAULT_TEXTURE_SIZE, progress: Callable[[int, int], None] | None = None,
-             guard_energy: bool = True, samples: int = DEFAULT_SAMPLES, cameras: Cameras | None = None) -> Generation:
+             guard_energy: bool = True, samples: int = DEFAULT_SAMPLES, cameras: Cameras | None = None,
+             strengths: bool = True) -> Generation:
     """The latent textures of ``inp``'s materials for ``prompt``; ``progress(step, steps)`` follows the
     sampling. Each material's texture follows its maps' size up to ``texture_size`` a side.
     ``guidance`` None samples with the prompt's type's default (``guidance_for``);
     ``guard_energy`` False skips the energy guard (its scale maps are then all 1); ``samples`` > 1
     averages that many residuals (``LatentGenerator.sample``); ``cameras`` (at the model's resolution)
-    replaces the ``views`` chosen to see the surface."""
+    replaces the ``views`` chosen to see the surface; ``strengths`` False draws the prior's worded settings
+    instead of reading them from the prompt's strength words (the generator before it read them)."""
     clock = StageClock()
     with clock.stage("prior"):
-        type_, warnings = prompt_type(prompt, metallic=inp.metallic)
-        warnings += inp.warnings
+        reading = read_prompt(prompt, metallic=inp.metallic)
+        type_, warnings = reading.type, reading.warnings + inp.warnings
         if type_ in METAL_REMAP:
             warnings += [f"material {m.name!r} is a metal: its prior takes Type {METAL_REMAP[type_]} instead"
                          for m in inp.materials if m.metallic]
-        spaces = _texture_spaces(inp, type_, texture_size)
+        spaces = texture_spaces(inp, type_, texture_size, reading.settings() if strengths else {})
     res = cfg.model.size
     with clock.stage("view_choice"):
         cams = cameras or choose_cameras(inp.mesh, [TextureSpace(s.charts) for s in spaces], views,

@@ -32,6 +32,7 @@ from richmat_addon.core.enhance import METALLIC_THRESHOLD
 from richmat_addon.core.gltf_container import read_uri
 from richmat_addon.core.gltf_materials import TextureTransform
 from richmat_addon.core.maps import ParamMap, PbrInputs
+from richmat_addon.core.prompt import Reading, base_over, keeps_base
 from richmat_addon.core.uv_raster import MAX_UV_OVERLAP, rasterize as uv_rasterize, uv_area
 
 from .views import Mesh, sample_texture
@@ -213,7 +214,8 @@ def _trimesh_parts(path: Path) -> tuple[list[_Part], list[str]]:
         parts.append(_Part(MaterialInput(name, _base_colour(part)), z_up(np.asarray(part.vertices, np.float64)),
                            z_up(np.asarray(part.vertex_normals, np.float64)), uv,
                            np.asarray(part.faces, np.int64)))
-    return parts, ["no roughness or metalness in the file: the generator goes by the prompt alone"]
+    return parts, ["no roughness or metalness in the file: the prompt's material family and finish give them "
+                   "where it names them, else they are unknown to the generator"]
 
 
 class _MeshFolder(Mapping[str, bytes]):
@@ -373,3 +375,23 @@ def use_baked_material(inp: MeshInput, folder: Path) -> None:
     material.base_color = base[..., :3]
     # enhance: alpha_core = roughness^p
     material.roughness_metalness = stack_maps(alpha[..., :1] ** (1.0 / exponent), metal[..., :1])
+
+
+def put_words_base(inp: MeshInput, reading: Reading, choice: str = "auto") -> None:
+    """Put the base material the prompt names on each material (``prompt.base_over``): ``choice`` "auto"
+    keeps a textured base colour and takes the words' on a one-colour (or absent) one, "mesh" and "words"
+    decide for every material. Each change is noted (neural.json's notes)."""
+    for material in inp.materials:
+        keep = keeps_base(material.base_color, choice)
+        rm = material.roughness_metalness
+        rough0, metal0 = (None, None) if rm is None else (rm[..., :1], rm[..., 1:])
+        base, rough, metal = base_over(reading, material.base_color, rough0, metal0, keep)
+        said = []
+        if base is not material.base_color:
+            said.append(f"base colour {reading.colour_name}")
+        if rough is not rough0 or metal is not metal0:
+            said.append(f"roughness {float(rough.mean()):.2f} and metalness {float(metal.mean()):g}")
+            material.roughness_metalness = stack_maps(rough, metal)
+        material.base_color = base
+        if said:
+            inp.notes.append(f"material {material.name!r}: {' and '.join(said)} from the prompt's words")

@@ -1,10 +1,10 @@
 """The uplift prior: the procedural enhancement that the generator refines.
 
 The enhancement rules (``core.enhance``) already turn a mesh's PBR material into a
-plausible enhanced one of the type the prompt names; what they cannot read is the
-prompt's wording ("light dust", "thick glossy coat"), so they draw their settings.
-The generator starts from that uplift, with fixed draws (``PRIOR_SEED``), and
-learns only the residual the caption calls for: its input views carry the prior's
+plausible enhanced one of the type the prompt names. The settings a caption words
+("light dust", "heavy haze") are set from the prompt's strength words (``prompt.Reading
+.settings``); the rest are drawn with fixed draws (``PRIOR_SEED``). The generator starts
+from that uplift and learns only the residual the caption calls for: its input views carry the prior's
 latents, its target is reference minus prior, and ``generate`` adds the projected
 residual to the prior texture, which is exact at every texel (no view blur).
 
@@ -44,16 +44,18 @@ def pbr_inputs(base_color: np.ndarray, roughness_metalness: np.ndarray | None, s
 
 def prior_material(base_color: np.ndarray, roughness_metalness: np.ndarray | None, type_: int,
                    normals: np.ndarray, positions: np.ndarray, seed: int = PRIOR_SEED,
-                   name: str = PRIOR_NAME) -> EnhancedMaterial:
+                   name: str = PRIOR_NAME, fixed: dict[str, float] | None = None) -> EnhancedMaterial:
     """The enhanced material the prior encodes, at the normals' texture size; ``seed`` and ``name``
-    pick other draws (a reference uplift with a material's own draws, bench/generate_prompts.py)."""
+    pick other draws (a reference uplift with a material's own draws, bench/generate_prompts.py);
+    ``fixed`` settings replace their draws (the prompt's strength words, ``prompt.Reading.settings``)."""
     pbr = pbr_inputs(base_color, roughness_metalness, normals.shape[:2], name)
     resolved, _ = resolve_type(pbr, type_, seed)  # a dielectric-only type on a metal: its metal twin
-    return enhance(pbr, resolved, seed, ParamMap(normals.astype(np.float32)), ParamMap(positions.astype(np.float32)))
+    return enhance(pbr, resolved, seed, ParamMap(normals.astype(np.float32)), ParamMap(positions.astype(np.float32)),
+                   fixed=fixed)
 
 
 def prior_latents(base_color: np.ndarray, roughness_metalness: np.ndarray | None, type_: int,
-                  normals: np.ndarray, positions: np.ndarray) -> np.ndarray:
+                  normals: np.ndarray, positions: np.ndarray, fixed: dict[str, float] | None = None) -> np.ndarray:
     """(H, W, 6) the shipped encoder's latents of the prior material, at the normals' texture size."""
-    material = prior_material(base_color, roughness_metalness, type_, normals, positions)
+    material = prior_material(base_color, roughness_metalness, type_, normals, positions, fixed=fixed)
     return latent_texture(material, normals.shape[:2])

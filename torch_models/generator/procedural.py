@@ -16,12 +16,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from richmat_addon.core.base_materials import CORPUS_METALS, FAMILIES as MATERIAL_FAMILIES, METALS
 from richmat_addon.core.colour import gamma_to_linear
 from richmat_addon.core.maps import PbrInputs, ParamMap
 from richmat_addon.core.uv_raster import rasterize as uv_rasterize
 from .views import Mesh
 
-FAMILIES = ("metal", "paint", "plastic", "ceramic", "wood", "fabric")
+FAMILIES = tuple(MATERIAL_FAMILIES)  # metal, paint, plastic, ceramic, wood, fabric: the draws index this order
+ROUGHNESS = {f.name: f.roughness for f in MATERIAL_FAMILIES.values()}
 SHAPES = ("sphere", "box", "cylinder", "capsule", "torus", "cone")
 
 
@@ -97,10 +99,6 @@ def _hsv(h: float, s: float, v: float) -> np.ndarray:
     return gamma_to_linear(np.asarray(colorsys.hsv_to_rgb(h % 1.0, s, v)))
 
 
-METAL_COLOURS = {"silver": (0.91, 0.92, 0.92), "gold": (1.0, 0.77, 0.34), "copper": (0.95, 0.64, 0.54),
-                 "iron": (0.56, 0.57, 0.58), "aluminium": (0.91, 0.92, 0.92), "brass": (0.91, 0.78, 0.42)}
-
-
 def family_textures(family: str, p: np.ndarray,
                     rng: np.random.Generator) -> tuple[str, np.ndarray, np.ndarray, np.ndarray]:
     """A material name, base colour (N, 3), roughness (N,), metalness (N,) at world points p (N, 3).
@@ -111,21 +109,21 @@ def family_textures(family: str, p: np.ndarray,
     fine = _smooth_noise(p, rng, base=8.0)
     metal, name = np.zeros(len(p)), family
     if family == "metal":
-        name = list(METAL_COLOURS)[rng.integers(len(METAL_COLOURS))]
-        base = np.asarray(METAL_COLOURS[name])[None] * (1 + 0.05 * n[:, None])
-        rough = rng.uniform(0.1, 0.45) + 0.08 * fine  # brushed/worn variation
+        name = CORPUS_METALS[rng.integers(len(CORPUS_METALS))]
+        base = np.asarray(METALS[name])[None] * (1 + 0.05 * n[:, None])
+        rough = rng.uniform(*ROUGHNESS["metal"]) + 0.08 * fine  # brushed/worn variation
         metal[:] = 1.0
     elif family == "paint":
         base = np.tile(_hsv(rng.uniform(), rng.uniform(0.6, 1.0), rng.uniform(0.4, 0.9)), (len(p), 1))
-        rough = rng.uniform(0.05, 0.35) + 0.03 * fine
+        rough = rng.uniform(*ROUGHNESS["paint"]) + 0.03 * fine
     elif family == "plastic":
         c0 = _hsv(rng.uniform(), rng.uniform(0.3, 0.9), rng.uniform(0.3, 0.95))
         base = c0[None] * (1 + 0.05 * fine[:, None])
-        rough = rng.uniform(0.3, 0.7) + 0.05 * n
+        rough = rng.uniform(*ROUGHNESS["plastic"]) + 0.05 * n
     elif family == "ceramic":
         c0 = _hsv(rng.uniform(), rng.uniform(0.0, 0.35), rng.uniform(0.75, 0.98))
         base = c0[None] * (1 + 0.08 * n[:, None])  # mottled glaze
-        rough = rng.uniform(0.03, 0.25) + 0.02 * fine
+        rough = rng.uniform(*ROUGHNESS["ceramic"]) + 0.02 * fine
     elif family == "wood":
         axis = rng.normal(size=3)
         axis /= np.linalg.norm(axis)
@@ -133,13 +131,13 @@ def family_textures(family: str, p: np.ndarray,
         rings = 0.5 + 0.5 * np.sin(2 * np.pi * rng.uniform(6, 14) * radial + 2.0 * n)
         light, dark = _hsv(rng.uniform(0.06, 0.1), 0.55, 0.75), _hsv(rng.uniform(0.05, 0.09), 0.7, 0.4)
         base = light[None] * (1 - rings[:, None]) + dark[None] * rings[:, None]
-        rough = rng.uniform(0.45, 0.75) + 0.1 * rings
+        rough = rng.uniform(*ROUGHNESS["wood"]) + 0.1 * rings
     else:  # fabric: a weave of two thread directions
         f = rng.uniform(20, 40)
         weave = np.sin(f * np.pi * p[:, 0]) * np.sin(f * np.pi * (p[:, 1] + p[:, 2]))
         c0 = _hsv(rng.uniform(), rng.uniform(0.2, 0.8), rng.uniform(0.3, 0.8))
         base = c0[None] * (1 + 0.15 * weave[:, None])
-        rough = rng.uniform(0.8, 0.95) + 0.05 * weave
+        rough = rng.uniform(*ROUGHNESS["fabric"]) + 0.05 * weave
     return name, np.clip(base, 0, 1), np.clip(rough, 0.02, 1.0), metal
 
 
