@@ -4,7 +4,9 @@ Run in a child process with the pip bpy module:
     python -m bench.native_agreement_cycles JOB.json
 JOB.json holds {"cases": [...], "probe", "resolution", "samples", "seed", "out"} and,
 optionally, "configs" (default ``CPU_CONFIGS``: Cycles on the CPU reading the OSL
-graph, then the native one; a configuration's own "samples" overrides the job's),
+graph, then the native one; a configuration's own "samples" overrides the job's, and
+an EEVEE one with "eevee_form": false reads the native form Cycles reads, rendering
+only the cases where EEVEE's own form differs),
 "frames" (default ``FRAMES``) and "control" (also render a plain Principled BSDF
 ball, which tells a compiled EEVEE shader from EEVEE's fallback). Writes
 OUT/<case>_<label>_<frame>.exr, OUT/times.json ({case: {label: {"first": [wall, cpu],
@@ -72,6 +74,19 @@ def use(scene: bpy.types.Scene, config: dict, samples: int) -> list[str]:
     return [device.name for device in prefs.devices if device.use]
 
 
+def use_in_eevee(material: bpy.types.Material, own_form: bool) -> bool:
+    """Link EEVEE's output to EEVEE's own form of the native graph or to the form Cycles reads; False
+    when asked for Cycles' form of a material that has no other (EEVEE would draw the same)."""
+    from richmat_addon.blender import cycles_builder, native_builder
+
+    nodes = material.node_tree.nodes
+    if native_builder.EEVEE_NODE not in nodes:
+        return own_form
+    source = nodes[native_builder.EEVEE_NODE if own_form else native_builder.NODE]
+    material.node_tree.links.new(source.outputs[0], nodes[cycles_builder.EEVEE_OUTPUT_NODE].inputs["Surface"])
+    return True
+
+
 def read_json(path: Path) -> dict:
     return json.loads(path.read_text()) if path.exists() else {}
 
@@ -118,6 +133,8 @@ def main(job_path: Path) -> None:
                 continue
             if cycles_builder.cycles_graph(material) is not None:
                 cycles_builder.use_in_cycles(material, config["graph"])
+            if config["engine"] != "CYCLES" and not use_in_eevee(material, config.get("eevee_form", True)):
+                continue
             scene.render.filepath = str(out / f"{name}_{config['label']}_")
             stamps.clear()
             bpy.ops.render.render(animation=True)
@@ -128,7 +145,7 @@ def main(job_path: Path) -> None:
             seconds = [[end - start for start, end in zip(stamps[i], stamps[i + 1])] for i in range(0, len(stamps), 2)]
             times.setdefault(name, {})[config["label"]] = {"first": seconds[0],
                                                            "frame": [min(column) for column in zip(*(seconds[1:] or seconds))]}
-        print(f"{name}: " + ", ".join(f"{label} {t['frame'][1]:.2f} s" for label, t in times[name].items()),
+        print(f"{name}: " + ", ".join(f"{label} {t['frame'][1]:.2f} s" for label, t in times.get(name, {}).items()),
               flush=True)
         # After every case, so that a run stopped by a time limit keeps what it finished.
         (out / "times.json").write_text(json.dumps(times, indent=1))

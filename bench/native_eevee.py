@@ -12,9 +12,12 @@ Both are tone mapped with AgX and compared with LDR-FLIP.
 Noise floors, per case: Cycles at the next seed against Cycles (a second child
 process), and EEVEE's two frames against each other (EEVEE has no seed: its sample
 pattern is fixed, so the two agree exactly unless it is not deterministic). A plain
-Principled ball rendered alongside tells a compiled EEVEE shader from EEVEE's grey
-fallback. The brightness ratio (EEVEE over Cycles, mean displayed luminance over the ball)
-says which way a lobe misses.
+Principled ball (Blender's default material) renders in both engines too: it tells a
+compiled EEVEE shader from EEVEE's grey fallback, and its own FLIP is what EEVEE's
+lighting costs a material that is no richmat graph at all. Where EEVEE reads a form of
+the native graph of its own (``Family.eevee``: the sheen), a third child renders EEVEE
+reading Cycles' form too, side by side. The brightness ratio (EEVEE over Cycles, mean
+displayed luminance over the ball) says which way a lobe misses.
 
     python -m bench.native_eevee [--per-type N] [--asset NAME] [--eevee-samples N] [--out FILE.json]
 
@@ -45,6 +48,8 @@ from torch_models.render.tonemap import agx
 TARGET_MEAN, TARGET_WORST = 0.05, 0.10
 FRAMES = 2  # EEVEE's second frame checks that it is deterministic; the first one also pays for compiling
 CYCLES = CPU_CONFIGS[1]  # Cycles on the CPU, native graph (SVM)
+CYCLES_FORM = "eevee_cycles_form"  # EEVEE reading the native graph's form for Cycles, where EEVEE has its own
+REFERENCE = "Principled BSDF"  # the control ball's group: Blender's default material in both engines
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
@@ -61,35 +66,43 @@ def brightness_ratio(eevee: np.ndarray, cycles: np.ndarray) -> float:
 
 
 def render(all_cases: list[Case], args: argparse.Namespace, folder: Path) -> None:
-    """EEVEE and Cycles at ``args.seed`` into ``folder``/seed, Cycles at the next seed into ``folder``/floor."""
+    """Into ``folder``: seed/, EEVEE and Cycles at ``args.seed``; floor/, Cycles at the next seed; cycles_form/,
+    EEVEE reading the form of the native graph Cycles reads, for the cases where EEVEE has its own."""
     eevee = dict(GPU_CONFIGS[0], samples=args.eevee_samples)
+    cycles_form = dict(eevee, label=CYCLES_FORM, eevee_form=False)
     for half, configs, seed, frames in (("seed", [eevee, CYCLES], args.seed, FRAMES),
-                                        ("floor", [CYCLES], args.seed + 1, 1)):
+                                        ("floor", [CYCLES], args.seed + 1, 1),
+                                        (CYCLES_FORM, [cycles_form], args.seed, 1)):
         out = folder / half
         out.mkdir(parents=True, exist_ok=True)
         (out / "job.json").write_text(json.dumps({
             "cases": [asdict(c) for c in all_cases], "probe": str(args.probe), "resolution": args.resolution,
             "samples": args.samples, "seed": seed, "out": str(out), "configs": configs, "frames": frames,
-            "control": half == "seed"}))
+            "control": half != CYCLES_FORM}))
         print(f"{half}: {[c['label'] for c in configs]} at seed {seed}, {len(all_cases)} cases ...", flush=True)
         run_python(["-m", "bench.native_agreement_cycles", str(out / "job.json")], folder)
 
 
-def compare(case: Case, folder: Path, times: dict) -> tuple[dict, list[tuple[str, np.ndarray]]]:
+def compare(name: str, folder: Path, times: dict) -> tuple[dict, list[tuple[str, np.ndarray]]]:
     """One case's row of the report and its row of the sheet."""
-    eevee_rgba, cycles_rgba = frame(folder / "seed", case.name, "eevee"), frame(folder / "seed", case.name, "native")
+    eevee_rgba, cycles_rgba = frame(folder / "seed", name, "eevee"), frame(folder / "seed", name, "native")
     eevee, cycles = agx(eevee_rgba[..., :3]), agx(cycles_rgba[..., :3])
-    other_seed = agx(frame(folder / "floor", case.name, "native", 1)[..., :3])
+    other_seed = agx(frame(folder / "floor", name, "native", 1)[..., :3])
     error, flip = flip_map(cycles, eevee)
     floor_map, floor = flip_map(cycles, other_seed)
-    repeat = flip_map(agx(frame(folder / "seed", case.name, "eevee", 1)[..., :3]), eevee)[1]
+    repeat = flip_map(agx(frame(folder / "seed", name, "eevee", 1)[..., :3]), eevee)[1]
     grey = agx(frame(folder / "seed", CONTROL, "eevee")[..., :3])
-    row = {"name": case.name, "node": case.node, "group": group_of(case), "flip": flip, "cycles_floor": floor,
-           "eevee_repeat": repeat, "brightness_ratio": brightness_ratio(eevee_rgba, cycles_rgba),
-           "eevee_compiled": compiled(grey, eevee, flip), "seconds": times.get(case.name, {}),
-           "params": case.params, "base_color": case.base_color}
-    return row, [("EEVEE", eevee), ("Cycles", cycles), (f"FLIP {flip:.3f}", error),
-                 (f"Cycles seed+1: {floor:.3f}", floor_map)]
+    row = {"name": name, "flip": flip, "cycles_floor": floor, "eevee_repeat": repeat,
+           "brightness_ratio": brightness_ratio(eevee_rgba, cycles_rgba),
+           "eevee_compiled": name == CONTROL or compiled(grey, eevee, flip), "seconds": times.get(name, {})}
+    images = [("EEVEE", eevee), ("Cycles", cycles), (f"FLIP {flip:.3f}", error),
+              (f"Cycles seed+1: {floor:.3f}", floor_map)]
+    if (folder / CYCLES_FORM / f"{name}_{CYCLES_FORM}_0001.exr").exists():
+        other_form = frame(folder / CYCLES_FORM, name, CYCLES_FORM, 1)
+        row["cycles_form"] = {"flip": flip_map(cycles, agx(other_form[..., :3]))[1],
+                              "brightness_ratio": brightness_ratio(other_form, cycles_rgba)}
+        images.append((f"EEVEE, Cycles' form: {row['cycles_form']['flip']:.3f}", agx(other_form[..., :3])))
+    return row, images
 
 
 def summary(rows: list[dict]) -> dict:
@@ -98,7 +111,7 @@ def summary(rows: list[dict]) -> dict:
     groups: dict[str, list[dict]] = {}
     for row in rows:
         groups.setdefault(row["group"], []).append(row)
-    groups["all"] = rows
+    groups["all"] = [r for r in rows if r["group"] != REFERENCE]
 
     def stats(members: list[dict]) -> dict:
         flips = [r["flip"] for r in members]
@@ -163,17 +176,20 @@ def main() -> None:
     rows, sheet = [], []
     with tempfile.TemporaryDirectory(prefix="richmat_native_eevee_") as fresh:
         folder = args.renders or Path(fresh)
-        if not (folder / "floor" / "times.json").exists():
+        if not (folder / CYCLES_FORM / "times.json").exists():
             render(all_cases, args, folder)
         times = read_json(folder / "seed" / "times.json")
         renderer = read_json(folder / "seed" / "devices.json")["eevee"][0]
-        for case in all_cases:
-            row, images = compare(case, folder, times)
+        for case in [*all_cases, None]:
+            row, images = compare(case.name if case else CONTROL, folder, times)
+            row.update({"node": case.node, "group": group_of(case), "params": case.params,
+                        "base_color": case.base_color} if case else {"node": "surface", "group": REFERENCE})
             rows.append(row)
-            sheet.append((f"{case.name}\nFLIP {row['flip']:.3f} (floor {row['cycles_floor']:.3f})\n"
+            sheet.append((f"{row['name']}\nFLIP {row['flip']:.3f} (floor {row['cycles_floor']:.3f})\n"
                           f"EEVEE/Cycles {row['brightness_ratio']:.2f}", images))
-            print(f"{case.name:28s} FLIP {row['flip']:.4f} (Cycles floor {row['cycles_floor']:.4f}, EEVEE repeat "
-                  f"{row['eevee_repeat']:.4f}), brightness {row['brightness_ratio']:.3f}", flush=True)
+            print(f"{row['name']:28s} FLIP {row['flip']:.4f} (Cycles floor {row['cycles_floor']:.4f}, EEVEE repeat "
+                  f"{row['eevee_repeat']:.4f}), brightness {row['brightness_ratio']:.3f}"
+                  + (f"; Cycles' form {row['cycles_form']['flip']:.4f}" if "cycles_form" in row else ""), flush=True)
     overall = summary(rows)
     types = [g for g in overall if g.startswith("type")]
     report = {"seed": args.seed, "per_type": args.per_type, "asset": args.asset, "per_asset": args.per_asset,
