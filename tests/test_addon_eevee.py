@@ -27,17 +27,9 @@ scene.eevee.taa_render_samples = 4
 renders, pressed, engines = {}, {}, []
 
 def eevee(tag):
-    """The camera's view rendered with the scene's engine, linear RGB, top row first."""
+    """The camera's view rendered with the scene's engine (EEVEE), top row first."""
     engines.append(scene.render.engine)
-    path = Path(TMP) / f"{tag}.exr"
-    scene.render.image_settings.file_format = "OPEN_EXR"
-    scene.render.filepath = str(path)
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(str(path))
-    pixels = np.empty(WIDTH * HEIGHT * 4, np.float32)
-    image.pixels.foreach_get(pixels)
-    bpy.data.images.remove(image)
-    renders[tag] = pixels.reshape(HEIGHT, WIDTH, 4)[::-1, :, :3].tolist()
+    renders[tag] = render_exr(Path(TMP) / f"{tag}.exr")[::-1].tolist()
 
 eevee("factory")
 scene.richmat.enhancement_type, scene.richmat.seed = "2", 3
