@@ -61,12 +61,6 @@ def rendered(folder: Path, name: str) -> list[str]:
     return [c["label"] for c in GPU_CONFIGS if (folder / f"{name}_{c['label']}_{FRAMES:04d}.exr").exists()]
 
 
-def compiled(grey: np.ndarray, render: np.ndarray, flip_vs_reference: float) -> bool:
-    """Whether EEVEE compiled a case's shader: its ``render`` is nearer the reference than EEVEE's
-    ``grey`` fallback (the plain Principled ball)."""
-    return flip_map(grey, render)[1] > flip_vs_reference
-
-
 def summarise(rows: list[dict], label: str) -> dict:
     """Mean and worst FLIP of one configuration against each CPU reference, and its median seconds
     (None where its run stopped before it recorded a case's times)."""
@@ -150,7 +144,8 @@ def main() -> None:
                 render = image(gpu, case.name, label)
                 row["flip"][label] = {ref: flip_map(refs[ref], render)[1] for ref in REFERENCES}
                 if label == "eevee":
-                    row["eevee_compiled"] = compiled(image(gpu, CONTROL, label), render, row["flip"][label]["osl"])
+                    grey = image(gpu, CONTROL, label)
+                    row["eevee_compiled"] = flip_map(grey, render)[1] > row["flip"][label]["osl"]
                 images.append((f"{label} {row['flip'][label]['osl']:.3f}", render))
             rows.append(row)
             sheet.append((case.name, images))
