@@ -126,6 +126,17 @@ def summary(rows: list[dict]) -> dict:
     return {name: stats(members) for name, members in groups.items()}
 
 
+def own_form(rows: list[dict]) -> dict:
+    """EEVEE's own form of the graph against the form Cycles reads, over the whole materials that have one:
+    the median FLIP of each and how many cases each draws closer to Cycles."""
+    both = [r for r in rows if "cycles_form" in r and r["node"] == "surface"]
+    if not both:
+        return {"cases": 0}
+    return {"cases": len(both), "median_flip": float(np.median([r["flip"] for r in both])),
+            "median_flip_cycles_form": float(np.median([r["cycles_form"]["flip"] for r in both])),
+            "closer": sum(r["flip"] < r["cycles_form"]["flip"] for r in both)}
+
+
 def chart(report: dict, path: Path) -> None:
     """Mean and worst FLIP per group beside the Cycles noise floor; EEVEE's brightness over Cycles' per case."""
     plt = pyplot()
@@ -166,7 +177,8 @@ def main() -> None:
                         help="EEVEE samples per frame (default: 16; about 0.6 s each at 96 px on llvmpipe)")
     parser.add_argument("--probe", type=Path, default=DEFAULT_PROBE, help="equirectangular HDR probe")
     parser.add_argument("--renders", type=Path, default=None, metavar="DIR",
-                        help="keep the renders in DIR, or compare those already there (default: a temporary folder)")
+                        help="keep the renders in DIR, or compare those already there (the report's \"rendered\" "
+                             "says which; default: a temporary folder)")
     add_out_argument(parser, "native_eevee.json")
     args = parser.parse_args()
 
@@ -175,7 +187,8 @@ def main() -> None:
     rows, sheet = [], []
     with tempfile.TemporaryDirectory(prefix="richmat_native_eevee_") as fresh:
         folder = args.renders or Path(fresh)
-        if not (folder / CYCLES_FORM / "times.json").exists():
+        rendered = not (folder / CYCLES_FORM / "times.json").exists()
+        if rendered:
             render(all_cases, args, folder)
         times = read_json(folder / "seed" / "times.json")
         renderer = read_json(folder / "seed" / "devices.json")["eevee"][0]
@@ -195,9 +208,9 @@ def main() -> None:
               "probe": args.probe.name, "resolution": args.resolution, "samples": args.samples,
               "eevee_samples": args.eevee_samples, "eevee_renderer": renderer, "reference": "Cycles CPU, native graph",
               "flip_convention": FLIP_CONVENTION, "target_mean": TARGET_MEAN, "target_worst": TARGET_WORST,
-              "types_passed": [g for g in types if overall[g]["passed"]],
+              "types_passed": [g for g in types if overall[g]["passed"]], "eevee_form": own_form(rows),
               "time_columns": "seconds[config][first|frame] = [wall, cpu]",
-              "wall_seconds": time.perf_counter() - start, "summary": overall, "cases": rows}
+              "rendered": rendered, "wall_seconds": time.perf_counter() - start, "summary": overall, "cases": rows}
     write_report(args.out, report)
     chart(report, args.out.with_suffix(".png"))
     labelled_sheet(sheet, args.out.with_name(args.out.stem + "_sheet.png"))
