@@ -4,19 +4,24 @@ Run in a child process with the pip bpy module:
     python -m bench.native_agreement_cycles JOB.json
 JOB.json holds {"cases": [...], "probe", "resolution", "samples", "seed", "out"} and,
 optionally, "configs" (default ``CPU_CONFIGS``: Cycles on the CPU reading the OSL
-graph, then the native one) and "control" (also render a plain Principled BSDF
+graph, then the native one; a configuration's own "samples" overrides the job's, and
+an EEVEE one with "eevee_form": false reads the native form Cycles reads, rendering
+only the cases where EEVEE's own form differs),
+"frames" (default ``FRAMES``) and "control" (also render a plain Principled BSDF
 ball, which tells a compiled EEVEE shader from EEVEE's fallback). Writes
 OUT/<case>_<label>_<frame>.exr, OUT/times.json ({case: {label: {"first": [wall, cpu],
 "frame": [wall, cpu]}}}, seconds; a configuration whose device is missing is left out)
-and OUT/devices.json ({label: the devices it rendered on}), adding to those files
+and OUT/devices.json ({label: the devices it rendered on; for EEVEE, the OpenGL renderer,
+such as Mesa's llvmpipe on a machine without a GPU}), adding to those files
 when they are there.
 
 One preview scene, one render thread. Each case's material carries both graphs,
 as an uplifted one does; Cycles reads the configuration's graph and shades with
-OSL or SVM to match, EEVEE reads the native graph. Each configuration renders ``FRAMES``
+OSL or SVM to match, EEVEE reads the native graph. Each configuration renders ``frames``
 frames with persistent data, as the farm renders an orbit: the first one pays for
 the scene sync and the shader compilation, the fastest of the others is the
-per-frame cost (the least disturbed by other jobs on a shared machine). CPU
+per-frame cost (the least disturbed by other jobs on a shared machine; the first, when
+there is one frame). CPU
 seconds are the process's: there they move less than wall seconds.
 
 The main processes import this module's constants, so bpy is imported inside.
@@ -41,7 +46,7 @@ CONTROL = "control"  # the plain Principled BSDF ball's case name
 FRAMES = 3
 
 
-def use(scene: bpy.types.Scene, config: dict) -> list[str]:
+def use(scene: bpy.types.Scene, config: dict, samples: int) -> list[str]:
     """Set the scene up for ``config``; the names of the devices it renders on, none when they are missing."""
     import bpy
 
@@ -49,9 +54,11 @@ def use(scene: bpy.types.Scene, config: dict) -> list[str]:
 
     scene.render.engine = config["engine"]
     preview_scene.use_mesh_ball(config["engine"] != "CYCLES")
+    samples = config.get("samples", samples)
     if config["engine"] != "CYCLES":
-        scene.eevee.taa_render_samples = scene.cycles.samples
-        return ["GPU (EEVEE)"]
+        scene.eevee.taa_render_samples = samples
+        return ["GPU (EEVEE)"]  # named after the render: background mode opens OpenGL only to render
+    scene.cycles.samples = samples
     scene.cycles.shading_system = config["graph"] == "osl"
     scene.cycles.device = "CPU" if config["device"] == "CPU" else "GPU"
     if config["device"] == "CPU":
@@ -65,6 +72,19 @@ def use(scene: bpy.types.Scene, config: dict) -> list[str]:
     for device in prefs.devices:
         device.use = device.type == config["device"]
     return [device.name for device in prefs.devices if device.use]
+
+
+def use_in_eevee(material: bpy.types.Material, own_form: bool) -> bool:
+    """Link EEVEE's output to EEVEE's own form of the native graph or to the form Cycles reads; False
+    when asked for Cycles' form of a material that has no other (EEVEE would draw the same)."""
+    from richmat_addon.blender import cycles_builder, native_builder
+
+    nodes = material.node_tree.nodes
+    if native_builder.EEVEE_NODE not in nodes:
+        return own_form
+    source = nodes[native_builder.EEVEE_NODE if own_form else native_builder.NODE]
+    material.node_tree.links.new(source.outputs[0], nodes[cycles_builder.EEVEE_OUTPUT_NODE].inputs["Surface"])
+    return True
 
 
 def read_json(path: Path) -> dict:
@@ -89,7 +109,7 @@ def main(job_path: Path) -> None:
     scene.render.use_persistent_data = True
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.image_settings.color_depth = "32"
-    scene.frame_start, scene.frame_end = 1, FRAMES
+    scene.frame_start, scene.frame_end = 1, job.get("frames", FRAMES)
     ball = bpy.data.node_groups[preview_scene.BALL].nodes["Set Material"].inputs["Material"]
     stamps: list[tuple[float, float]] = []
 
@@ -108,18 +128,24 @@ def main(job_path: Path) -> None:
     for name, material in materials:
         ball.default_value = material
         for config in configs:
-            devices[config["label"]] = use(scene, config)
+            devices[config["label"]] = use(scene, config, job["samples"])
             if not devices[config["label"]]:
                 continue
             if cycles_builder.cycles_graph(material) is not None:
                 cycles_builder.use_in_cycles(material, config["graph"])
+            if config["engine"] != "CYCLES" and not use_in_eevee(material, config.get("eevee_form", True)):
+                continue
             scene.render.filepath = str(out / f"{name}_{config['label']}_")
             stamps.clear()
             bpy.ops.render.render(animation=True)
+            if config["engine"] != "CYCLES":
+                import gpu
+
+                devices[config["label"]] = [gpu.platform.renderer_get()]
             seconds = [[end - start for start, end in zip(stamps[i], stamps[i + 1])] for i in range(0, len(stamps), 2)]
             times.setdefault(name, {})[config["label"]] = {"first": seconds[0],
-                                                           "frame": [min(column) for column in zip(*seconds[1:])]}
-        print(f"{name}: " + ", ".join(f"{label} {t['frame'][1]:.2f} s" for label, t in times[name].items()),
+                                                           "frame": [min(column) for column in zip(*(seconds[1:] or seconds))]}
+        print(f"{name}: " + ", ".join(f"{label} {t['frame'][1]:.2f} s" for label, t in times.get(name, {}).items()),
               flush=True)
         # After every case, so that a run stopped by a time limit keeps what it finished.
         (out / "times.json").write_text(json.dumps(times, indent=1))

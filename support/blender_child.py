@@ -6,11 +6,13 @@ test and bench that needs Blender runs it in a child.
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 import signal
 import subprocess
 import sys
+import tempfile
 import textwrap
 from pathlib import Path
 from typing import Any
@@ -40,3 +42,31 @@ def run_blender(source: str, folder: Path, timeout: float = 300.0) -> Any:
         raise AssertionError(f"blender script failed ({proc.returncode}):\n{stdout[-3000:]}\n{stderr[-3000:]}")
     results = [ln[len("RESULT "):] for ln in stdout.splitlines() if ln.startswith("RESULT ")]
     return json.loads(results[-1]) if results else None
+
+
+EEVEE_PROBE = '''
+import bpy
+bpy.ops.wm.read_factory_settings(use_empty=False)
+scene = bpy.context.scene
+scene.render.engine = "BLENDER_EEVEE"
+scene.render.resolution_x = scene.render.resolution_y = 4
+scene.eevee.taa_render_samples = 1
+bpy.ops.render.render()
+'''
+
+
+@functools.cache
+def eevee_failure() -> str | None:
+    """None where EEVEE renders with the pip bpy module here; else why not.
+
+    Headless, EEVEE draws through EGL: Mesa's software OpenGL (llvmpipe) on a machine without a GPU.
+    Where EGL finds no OpenGL, Blender aborts the whole process, so a child renders a 4 px frame first.
+    """
+    with tempfile.TemporaryDirectory(prefix="richmat_eevee_probe_") as user:
+        proc = subprocess.run([sys.executable, "-c", EEVEE_PROBE], capture_output=True, text=True, timeout=300,
+                              env=dict(os.environ, BLENDER_USER_RESOURCES=user))
+    if proc.returncode == 0:
+        return None
+    said = [line for line in proc.stderr.splitlines() if line.strip() and "EGL_BAD_MATCH" not in line]
+    return (f"EEVEE cannot start here (Blender exited {proc.returncode}: {said[-1] if said else 'no message'}); "
+            "headless it needs Mesa's EGL and OpenGL drivers (Debian: libegl-mesa0 libgl1-mesa-dri)")

@@ -127,13 +127,18 @@ def render(size=32, samples=8):
         light.data.energy = 800
         light.location = (3, -4, 4)
         scene.collection.objects.link(light)
-    path = Path(bpy.app.tempdir or "/tmp") / f"render_{{os.getpid()}}.exr"
+    return render_exr(Path(bpy.app.tempdir or "/tmp") / f"render_{{os.getpid()}}.exr")
+
+def render_exr(path):
+    """The scene rendered by its engine into the EXR ``path``: (H, W, 3) linear, bottom row first."""
+    scene = bpy.context.scene
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.filepath = str(path)
     bpy.ops.render.render(write_still=True)
     img = bpy.data.images.load(str(path))
-    px = np.empty(size * size * 4, np.float32)
+    width, height = img.size
+    px = np.empty(width * height * 4, np.float32)
     img.pixels.foreach_get(px)
     bpy.data.images.remove(img)
-    return px.reshape(size, size, 4)[..., :3]
+    return px.reshape(height, width, 4)[..., :3]
 '''

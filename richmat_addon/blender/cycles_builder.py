@@ -11,7 +11,8 @@ Outputs (a Material Output's target decides which engine reads it):
 
 - ``richmat_output``, target Cycles: the OSL Script node (exact; CPU and OptiX only)
   or the native group (any device), whichever ``use_in_cycles`` chose;
-- ``richmat_output_eevee``, target EEVEE: the native group;
+- ``richmat_output_eevee``, target EEVEE: the native group, or its EEVEE form where
+  EEVEE draws a lobe's node in a way of its own (``richmat_native_eevee``: the sheen);
 - ``richmat_output_export``, target All and the active output: a Principled BSDF
   with the values an exporter can write (glTF, USD). Neither engine renders it, because
   each has an output of its own target.
@@ -291,9 +292,11 @@ def add_enhanced_nodes(material: bpy.types.Material, mat: EnhancedMaterial, text
     """Add the parameter nodes, the graphs and their outputs to ``material``'s tree.
 
     With one graph, one output reads it (target Cycles for OSL, All for the native
-    graph); with both, Cycles reads ``cycles``'s. Nodes already in the tree stay
-    (the add-on keeps the original normal-map chain there); the caller links
-    them. Returns the nodes whose Normal input takes the normal chain.
+    graph); with both, Cycles reads ``cycles``'s. Where EEVEE's native graph has a form
+    of its own (``native_builder.eevee_differs``), the EEVEE output reads that group
+    instead. Nodes already in the tree stay (the add-on keeps the original normal-map
+    chain there); the caller links them. Returns the nodes whose Normal input takes the
+    normal chain.
     """
     pruned = graph.prune(node, mat.constants())
     if pruned is None:
@@ -308,27 +311,36 @@ def add_enhanced_nodes(material: bpy.types.Material, mat: EnhancedMaterial, text
     if "osl" in graphs:
         shaders["osl"] = _script_node(tree, material.name, pruned)
     sources = _parameter_nodes(tree, mat, inputs, texture_paths)
+    natives: list[bpy.types.Node] = []  # the native group, then EEVEE's where it differs
     if "native" in graphs:
-        native = shaders["native"] = tree.nodes.new("ShaderNodeGroup")
-        native.name, native.label = NATIVE_NODE, "richmat enhanced (native nodes)"
-        native.node_tree = native_builder.material_group(pruned)
-        native.width = 240
+        for eevee in (False, True)[:1 + native_builder.eevee_differs(pruned)]:
+            native = tree.nodes.new("ShaderNodeGroup")
+            native.name = native_builder.EEVEE_NODE if eevee else NATIVE_NODE
+            native.label = f"richmat enhanced (native nodes{', EEVEE' if eevee else ''})"
+            native.node_tree = native_builder.material_group(pruned, eevee)
+            native.width = 240
+            natives.append(native)
+        shaders["native"] = natives[0]
         normal = tree.nodes.new("ShaderNodeNewGeometry")
         normal.location = (-300.0, -700.0)
-        tree.links.new(normal.outputs["Normal"], native.inputs["Normal"])
-    for n, shader in enumerate(shaders.values()):
+        for native in natives:
+            tree.links.new(normal.outputs["Normal"], native.inputs["Normal"])
+    takers = [*shaders.values(), *natives[1:]]
+    for n, shader in enumerate(takers):
         shader.location = (0.0, -500.0 * n)
         for inp in inputs:
             tree.links.new(sources[inp.name], shader.inputs[inp.name])
     if len(shaders) == 1:
         only, shader = next(iter(shaders.items()))
         _output(tree, OUTPUT_NODE, "CYCLES" if only == "osl" else "ALL", shader, 0.0)
-        return [shader]
+        if len(natives) > 1:
+            _output(tree, EEVEE_OUTPUT_NODE, "EEVEE", natives[1], -300.0)
+        return takers
     _output(tree, OUTPUT_NODE, "CYCLES", shaders[cycles], 0.0)
-    _output(tree, EEVEE_OUTPUT_NODE, "EEVEE", shaders["native"], -300.0)
+    _output(tree, EEVEE_OUTPUT_NODE, "EEVEE", natives[-1], -300.0)
     export = _export_node(tree, mat, sources)
     _output(tree, EXPORT_OUTPUT_NODE, "ALL", export, -600.0).is_active_output = True
-    return [*shaders.values(), export]
+    return [*takers, export]
 
 
 def constant_sockets(material: bpy.types.Material | None) -> dict[schema.Param, bpy.types.NodeSocket]:

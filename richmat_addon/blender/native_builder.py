@@ -18,9 +18,10 @@ import bpy
 from ..core import graph, osl
 from ..core.closures import KINDS
 from .native_closures import NATIVE
-from .native_nodes import Builder, Socket, Sockets, Value, group
+from .native_nodes import Builder, FamilyClosure, Socket, Sockets, Value, group
 
 NODE = "richmat_native"
+EEVEE_NODE = "richmat_native_eevee"  # where EEVEE's graph differs (``eevee_differs``)
 
 
 def _layer_fill(b: Builder, i: Sockets) -> Sockets:
@@ -45,9 +46,10 @@ def _colour(lobe: graph.Lobe) -> graph.Value:
 class _Walker:
     """Turns graph nodes into (shader, albedo or None) sockets inside the material's group."""
 
-    def __init__(self, b: Builder, inputs: Sockets) -> None:
+    def __init__(self, b: Builder, inputs: Sockets, eevee: bool) -> None:
         self.b = b
         self.inputs = inputs
+        self.eevee = eevee
         weight = b.node("ShaderNodeLayerWeight", "view cosine")
         b.feed(weight.inputs["Blend"], 0.5)
         b.feed(weight.inputs["Normal"], inputs["Normal"])
@@ -102,8 +104,15 @@ class _Walker:
         raise TypeError(f"not a graph node: {node!r}")
 
 
-def material_group(pruned: graph.Node) -> bpy.types.NodeTree:
-    """The group of a pruned graph, shared by the materials that keep the same lobes.
+def eevee_differs(pruned: graph.Node) -> bool:
+    """Whether EEVEE's graph of ``pruned`` draws some lobe in a form of its own (``Family.eevee``)."""
+    return any(isinstance(native := NATIVE[lobe.closure], FamilyClosure) and native.family(lobe).eevee is not None
+               for lobe in graph.iter_lobes(pruned))
+
+
+def material_group(pruned: graph.Node, eevee: bool = False) -> bpy.types.NodeTree:
+    """The group of a pruned graph, shared by the materials that keep the same lobes; with ``eevee``,
+    the form EEVEE reads (``eevee_differs``).
 
     Its inputs are the OSL shader's (``osl.shader_inputs``), in the same order and
     with the same names, so the textures and constants feed both the same way.
@@ -111,13 +120,13 @@ def material_group(pruned: graph.Node) -> bpy.types.NodeTree:
     inputs = osl.shader_inputs(pruned)
 
     def fill(b: Builder, sockets: Sockets) -> Sockets:
-        return {"BSDF": _Walker(b, sockets).node(pruned)[0]}
+        return {"BSDF": _Walker(b, sockets, eevee).node(pruned)[0]}
 
     names = [lobe.name for lobe in graph.iter_lobes(pruned)]
     if any(i.name == "base_color" for i in inputs):  # the shader inputs have it when the graph has the diffuse
         names.append("diffuse")
-    tree = group(f"richmat native ({' + '.join(names)})", [(i.name, i.osl_type) for i in inputs],
-                 [("BSDF", "shader")], fill)
+    tree = group(f"richmat native{' eevee' if eevee else ''} ({' + '.join(names)})",
+                 [(i.name, i.osl_type) for i in inputs], [("BSDF", "shader")], fill)
     items = {item.name: item for item in tree.interface.items_tree if item.in_out == "INPUT"}
     for inp in inputs:
         if not isinstance(inp.default, str):

@@ -158,13 +158,16 @@ class Family:
     """A lobe family's node group: the graph inputs it takes (besides Cosine and Normal) and its inside.
 
     ``layered`` families report the lobe's layering albedo, max_c(weight x colour x fit),
-    as a colour output, so the lobe can be a layer's top.
+    as a colour output, so the lobe can be a layer's top. ``eevee``, where set, is the
+    family EEVEE's graph uses instead: a closer form where EEVEE draws the node Cycles
+    uses in a way of its own (same inputs and outputs).
     """
 
     name: str
     inputs: tuple[tuple[str, str], ...]  # (graph input key, socket kind)
     fill: Callable[[Builder, Sockets], Sockets]
     layered: bool = True
+    eevee: Optional[Family] = None
 
     def tree(self) -> bpy.types.NodeTree:
         inputs = [("Weight", "float"), *((socket_name(k), kind) for k, kind in self.inputs),
@@ -173,14 +176,13 @@ class Family:
         return group(f"richmat {self.name}", inputs, outputs, self.fill)
 
 
-
-
 class Walker(Protocol):
     """What a closure kind's native half may use of the material-graph walker."""
 
     b: Builder
     inputs: Sockets  # the material group's inputs, named as the OSL shader's
     cosine: Socket  # the view cosine
+    eevee: bool  # building the graph EEVEE reads
 
     def value(self, value: graph.Value) -> Value: ...
 
@@ -198,8 +200,12 @@ class FamilyClosure:
     families: tuple[Family, ...]
     choose: Optional[Callable[[graph.Lobe], Family]] = None
 
+    def family(self, lobe: graph.Lobe) -> Family:
+        return self.choose(lobe) if self.choose else self.families[0]
+
     def build(self, walker: Walker, lobe: graph.Lobe) -> tuple[Socket, Optional[Socket]]:
-        family = self.choose(lobe) if self.choose else self.families[0]
+        family = self.family(lobe)
+        family = family.eevee if walker.eevee and family.eevee else family
         node = walker.b.group(family.tree(), lobe.name, Weight=walker.value(lobe.weight), Cosine=walker.cosine,
                               Normal=walker.inputs["Normal"])
         for key, _ in family.inputs:

@@ -80,8 +80,11 @@ def add_neural_nodes(material: bpy.types.Material, text: bpy.types.Text, baked: 
     fallback = cycles_builder.add_enhanced_nodes(material, baked.material(), {
         name: str(path) for name, path in baked.texture_paths.items()}, graphs=("native",))
     tree = material.node_tree
-    eevee = tree.nodes[OUTPUT_NODE]
-    eevee.name, eevee.target = EEVEE_OUTPUT_NODE, "EEVEE"
+    if EEVEE_OUTPUT_NODE in tree.nodes:  # EEVEE's own form of the native graph has its output already
+        tree.nodes.remove(tree.nodes[OUTPUT_NODE])
+    else:
+        eevee = tree.nodes[OUTPUT_NODE]
+        eevee.name, eevee.target = EEVEE_OUTPUT_NODE, "EEVEE"
     prefer_blender_bundled_modules()  # assigning the script runs Cycles' update, which imports oslquery
     script = tree.nodes.new("ShaderNodeScript")
     script.name, script.label = SCRIPT_NODE, "richmat neural preview (OSL)"

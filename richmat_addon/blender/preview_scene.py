@@ -71,6 +71,9 @@ def _world(probe: Path, rotation_deg: float) -> bpy.types.World:
     tree.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
     tree.links.new(env.outputs["Color"], background.inputs["Color"])
     tree.links.new(background.outputs["Background"], out.inputs["Surface"])
+    # EEVEE (Cycles ignores this): keep the whole probe in the world's light probe. By default EEVEE turns
+    # radiance above 10 into a sun, which on this probe left a diffuse ball at 0.37 of Cycles' brightness.
+    world.sun_threshold = 0.0
     return world
 
 

@@ -1,7 +1,8 @@
 """Sheen in nodes: the Sheen BSDF (Microfiber), the same Zeltner closure as OSL's ``sheen_bsdf``.
 
 Its layering albedo is ``w * max_c(c) * R`` with R from the core fit
-(``core/closures/sheen.py``) in math nodes.
+(``core/closures/sheen.py``) in math nodes. EEVEE has no sheen of its own (it draws
+the node as a diffuse), so its graph draws a diffuse of the sheen's reflectance.
 """
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import bpy
 
 from ...core.closures import sheen as kind
 from ...core.schema import SHEEN_ROUGHNESS_MIN
-from ..native_nodes import Builder, Family, FamilyClosure, Sockets, group, polynomial, strongest
+from ..native_nodes import Builder, Family, FamilyClosure, Socket, Sockets, group, polynomial, strongest
 
 
 def _albedo_fill(b: Builder, i: Sockets) -> Sockets:
@@ -29,14 +30,29 @@ def albedo_group() -> bpy.types.NodeTree:
                  _albedo_fill)
 
 
+def _albedo(b: Builder, i: Sockets, fit: bpy.types.Node) -> Socket:
+    """The layering albedo ``w * max_c(c) * R``."""
+    top = strongest(b, b.node("ShaderNodeSeparateXYZ"), i["Color"])
+    return b.math("MULTIPLY", b.math("MULTIPLY", i["Weight"], top), fit.outputs["Albedo"])
+
+
 def _fill(b: Builder, i: Sockets) -> Sockets:
     bsdf = b.bsdf("ShaderNodeBsdfSheen", i, distribution="MICROFIBER")
     b.feed(bsdf.inputs["Color"], i["Color"])
     b.feed(bsdf.inputs["Roughness"], i["Roughness"])
     fit = b.group(albedo_group(), Cosine=i["Cosine"], Roughness=i["Roughness"])
-    top = strongest(b, b.node("ShaderNodeSeparateXYZ"), i["Color"])
-    return {"BSDF": b.weighted(bsdf.outputs[0], i["Weight"]),
-            "Albedo": b.math("MULTIPLY", b.math("MULTIPLY", i["Weight"], top), fit.outputs["Albedo"])}
+    return {"BSDF": b.weighted(bsdf.outputs[0], i["Weight"]), "Albedo": _albedo(b, i, fit)}
 
 
-IMPLEMENTATION = FamilyClosure((Family("sheen", (("color", "color"), ("roughness", "float")), _fill),))
+def _eevee_fill(b: Builder, i: Sockets) -> Sockets:
+    """EEVEE draws a Sheen BSDF as a diffuse of its colour, several times the sheen's reflectance. A diffuse
+    of colour ``c R(mu)`` reflects what the sheen reflects towards the viewer under uniform light."""
+    fit = b.group(albedo_group(), Cosine=i["Cosine"], Roughness=i["Roughness"])
+    diffuse = b.bsdf("ShaderNodeBsdfDiffuse", i)
+    b.feed(diffuse.inputs["Color"], b.vector("SCALE", i["Color"], fit.outputs["Albedo"]))
+    b.feed(diffuse.inputs["Roughness"], 0.0)
+    return {"BSDF": b.weighted(diffuse.outputs[0], i["Weight"]), "Albedo": _albedo(b, i, fit)}
+
+
+INPUTS = (("color", "color"), ("roughness", "float"))
+IMPLEMENTATION = FamilyClosure((Family("sheen", INPUTS, _fill, eevee=Family("sheen eevee", INPUTS, _eevee_fill)),))
