@@ -43,6 +43,7 @@ from bench.common import REPORTS, add_out_argument, pyplot, save_chart, write_re
 from support.blender_child import run_blender
 from support.extension import build_extension, script
 from support.paths import SHARED_ASSETS
+from richmat_addon.core.texel_vectors import FIT_BUDGET
 from torch_models.neural import trained
 from torch_models.neural.evaluate import DEFAULT_PROBE
 from torch_models.render.flip import flip_map
@@ -235,6 +236,7 @@ def step(name, action, render=render_png):
 
 scene.richmat.output_dir = str(OUT / "baked")
 scene.richmat.fit_steps = FIT_STEPS
+scene.richmat.fit_budget = FIT_BUDGET
 step("original", import_asset)
 step("uplift", lambda: each_object("uplift_material"))
 step("bake", lambda: each_object("bake_parameters"))
@@ -252,7 +254,7 @@ def run_asset(name: str, zip_path: Path, folder: Path, args: argparse.Namespace)
     settings = (f"ASSET = {str(SHARED_ASSETS / 'models' / f'{name}.glb')!r}\nOUT = {str(folder / 'out')!r}\n"
                 f"RENDERS = {str(folder / 'renders')!r}\nPROBE = {str(DEFAULT_PROBE)!r}\n"
                 f"FIT_STEPS = {args.steps}\nSIZE = {args.size}\nSAMPLES = {args.samples}\n"
-                f"TEXTURE_SIZE = {args.texture_size}\n")
+                f"TEXTURE_SIZE = {args.texture_size}\nFIT_BUDGET = {args.fit_budget}\n")
     start = time.perf_counter()
     result = run_blender(script(settings + PIPELINE, zip_path), folder, timeout=4 * 3600)
     result.update(asset=name, wall_seconds=time.perf_counter() - start)
@@ -315,6 +317,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--assets", nargs="+", default=list(ASSETS))
     parser.add_argument("--steps", type=int, default=100, help="fit steps (the operator's Fit Steps)")
+    parser.add_argument("--fit-budget", type=int, default=FIT_BUDGET,
+                        help="the operator's Fit Budget (0: every vector, the fit before the budget)")
     parser.add_argument("--size", type=int, default=320, help="render size in pixels")
     parser.add_argument("--samples", type=int, default=32, help="Cycles samples per pixel of the renders")
     parser.add_argument("--texture-size", type=int, default=128,
@@ -333,7 +337,7 @@ def run(args: argparse.Namespace, zip_path: Path) -> None:
         raise SystemExit(f"the extension ships decoder {bundled[:8]}, not the shipped {trained.digest()[:8]}")
     report = dict(probe=DEFAULT_PROBE.name, extension=zip_path.name,
                   extension_sha256=hashlib.sha256(zip_path.read_bytes()).hexdigest(),
-                  settings=dict(fit_steps=args.steps, texture_size=args.texture_size, render_size=args.size,
+                  settings=dict(fit_steps=args.steps, fit_budget=args.fit_budget, texture_size=args.texture_size, render_size=args.size,
                                 render_samples=args.samples, torch_threads=os.environ.get("OMP_NUM_THREADS", "all")),
                   assets={})
     rows = {}

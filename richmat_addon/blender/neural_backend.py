@@ -225,9 +225,11 @@ class FitJob(BackendJob):
     out_dir: Path
     steps: int
     weights: str = ""
+    budget: int | None = None  # the fit's vector budget; None: the backend's default
 
     def arguments(self) -> list[str]:
         args = ["fit", str(self.material_dir), "--out", str(self.out_dir), "--steps", str(self.steps)]
+        args += ["--budget", str(self.budget)] if self.budget is not None else []
         return args + (["--weights", self.weights] if self.weights else [])
 
 

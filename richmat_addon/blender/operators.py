@@ -339,8 +339,10 @@ class RICHMAT_OT_fit_neural(_BackendOperator, bpy.types.Operator):
     def _make_job(self, context: bpy.types.Context) -> neural_backend.BackendJob:
         baked = Path(_enhanced(context).richmat.bake_dir)
         backend = neural_assets.backend(context)
-        return neural_backend.FitJob(backend.python, baked, baked / "neural", _settings(context).fit_steps,
-                                     str(neural_assets.decoder_folder(context)), source_root=backend.source_root)
+        s = _settings(context)
+        return neural_backend.FitJob(backend.python, baked, baked / "neural", s.fit_steps,
+                                     str(neural_assets.decoder_folder(context)), s.fit_budget,
+                                     source_root=backend.source_root)
 
     def _total(self, context: bpy.types.Context) -> int:
         return _settings(context).fit_steps

@@ -43,6 +43,7 @@ def draw_richmat(layout: bpy.types.UILayout, context: bpy.types.Context) -> None
     col.prop(s, "output_dir")
     col.operator("richmat.bake_parameters", icon="RENDER_STILL")
     col.prop(s, "fit_steps")
+    col.prop(s, "fit_budget")
     col.operator("richmat.fit_neural", icon="NETWORK_DRIVE")
     draw_fit_error(col, context)
     col.prop(s, "prompt")

@@ -4,6 +4,7 @@ from __future__ import annotations
 import bpy
 
 from ..core.enhancement_types import DIELECTRIC_ONLY, TYPES, index_ranges
+from ..core.texel_vectors import FIT_BUDGET
 
 TYPE_ITEMS = [("AUTO", "Auto",
                f"Draw a type from the paper's dataset mix (no {index_ranges(DIELECTRIC_ONLY)} on metals)")] + [
@@ -31,6 +32,11 @@ class RichmatSceneSettings(bpy.types.PropertyGroup):
     fit_steps: bpy.props.IntProperty(
         name="Fit Steps", default=300, min=1, soft_max=2000,
         description="Optimisation steps of the neural fit")
+    fit_budget: bpy.props.IntProperty(
+        name="Fit Budget", default=FIT_BUDGET, min=0, soft_max=65536,
+        description="Distinct parameter vectors fitted at most: past it, texels share the latents of this many "
+                    "representatives, so a photo-scanned texture fits in about a minute; 0 fits every vector "
+                    "(a 1k scan: tens of minutes)")
     prompt: bpy.props.StringProperty(
         name="Prompt", default="",
         description="What the generated material looks like: colour, material and finish (\"brushed gold metal\"), "
