@@ -78,3 +78,19 @@ def test_representatives_keep_metals_apart_from_dielectrics(model) -> None:  # t
     assert list(reps.of_vector[drawn]) == [0, 1]  # one member of each, in order
     z = torch.randn(2, 6)
     assert torch.equal(representatives.transfer(model, vectors, reps, z), z[torch.from_numpy(reps.of_vector)])
+
+
+def test_the_cli_says_what_it_does_before_its_steps(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The add-on's status line: a stage event names the representatives before the first step."""
+    import json
+
+    from torch_models.cli import main
+
+    folder = noisy_material(tmp_path / "mat", 48)
+    assert main(["fit", str(folder), "--out", str(tmp_path / "fit"), "--steps", "2", "--budget", str(BUDGET),
+                 "--progress", "jsonl"]) == 0
+    events = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    kinds = [e["event"] for e in events]
+    choosing = next(i for i, e in enumerate(events) if e["event"] == "stage" and "representatives" in e["text"])
+    assert choosing < kinds.index("progress") and kinds[-1] == "done"
+    assert [e["step"] for e in events if e["event"] == "progress"] == [1, 2]

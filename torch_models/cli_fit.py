@@ -11,7 +11,8 @@ reading, fitting, the energy check and the error measure. Ctrl-C saves the state
 
 ``--progress jsonl`` replaces the progress bar with one JSON object per line on
 stdout, for the Blender add-on (docs/addon.md): ``{"event": "progress", "step",
-"total", "loss"}`` per step, then ``{"event": "done", "out", "files"}``; bad input
+"total", "loss"}`` per step, ``{"event": "stage", "text"}`` before the work
+that has no steps (reading, choosing representatives, measuring the error), then ``{"event": "done", "out", "files"}``; bad input
 is ``{"event": "error", "message"}`` with exit code 2.
 """
 from __future__ import annotations
@@ -66,7 +67,12 @@ def run(args: argparse.Namespace) -> int:
                 if jsonl:
                     emit("progress", step=step, total=args.steps, loss=loss)
 
-            record = fit_material(model, args.material, args.out, settings, args.resume, progress)
+            def stage(text: str) -> None:
+                bar.set_description(text)
+                if jsonl:
+                    emit("stage", text=text)
+
+            record = fit_material(model, args.material, args.out, settings, args.resume, progress, stage)
     except (ValueError, FileNotFoundError, KeyError) as exc:
         if jsonl:
             emit("error", message=str(exc))

@@ -12,6 +12,7 @@ cancelled at any step (terminate) and a crash in torch cannot take Blender
 down. Protocol (stdout, one JSON object per line; docs/addon.md):
 
     {"event": "progress", "step": 12, "total": 300, "loss": 0.031}
+    {"event": "stage", "text": "choosing 4096 representatives of 409590 distinct vectors"}
     {"event": "done", "out": "/path/neural", "files": ["latent_0.exr", ...]}
     {"event": "error", "message": "..."}        (exit code 2)
 """

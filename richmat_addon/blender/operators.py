@@ -274,6 +274,8 @@ class _BackendOperator:
             if e["event"] == "progress":
                 context.window_manager.progress_update(int(e["step"]))
                 context.workspace.status_text_set(self._status(e))
+            elif e["event"] == "stage":
+                context.workspace.status_text_set(f"{self.bl_label}: {e['text']} (Esc cancels)")
         if self._job.running:
             return {"PASS_THROUGH"}
         self._end(context)

@@ -31,6 +31,7 @@ from .model import NeuralModel
 
 STATE_FILE = "fit_state.safetensors"  # an interrupted fit's latents and step, for resume
 Progress = Callable[[int, float], None]  # (steps done, loss)
+Stage = Callable[[str], None]  # what the fit does now, in words, before its steps and after them
 
 
 @dataclass(frozen=True)
@@ -62,11 +63,12 @@ class FitPlan:
     bounded: bool  # the budget chose representatives
 
 
-def plan(model: NeuralModel, material: Path, settings: FitSettings) -> FitPlan:
+def plan(model: NeuralModel, material: Path, settings: FitSettings, stage: Stage = lambda text: None) -> FitPlan:
     """The material's vectors and, past the budget, their representatives."""
     mv = read_vectors(material, settings.cluster_step)
     if not settings.budget or len(mv.unique) <= settings.budget:
         return FitPlan(mv, mv.unique, len(mv.unique), False)
+    stage(f"choosing {settings.budget} representatives of {len(mv.unique)} distinct vectors")
     counts = np.bincount(mv.inverse, minlength=len(mv.unique)).astype(np.float64)
     reps = representatives.choose(model, mv.unique, counts, settings.budget, settings.seed)
     drawn = representatives.draw_members(reps, counts, settings.seed)
@@ -102,14 +104,16 @@ def fit_vectors(model: NeuralModel, vectors: np.ndarray, settings: FitSettings, 
 
 
 def fit_material(model: NeuralModel, material: Path, out: Path, settings: FitSettings = FitSettings(),
-                 resume: bool = False, progress: Progress | None = None) -> dict[str, Any]:
+                 resume: bool = False, progress: Progress | None = None,
+                 stage: Stage = lambda text: None) -> dict[str, Any]:
     """Fit ``material`` (an enhanced material folder) into the neural folder ``out``; its record.
 
-    ``progress(step, loss)`` is called after every step; Ctrl-C raises ``FitInterrupted``
-    with the state saved for ``resume``."""
+    ``progress(step, loss)`` is called after every step and ``stage(text)`` before the work
+    without steps; Ctrl-C raises ``FitInterrupted`` with the state saved for ``resume``."""
     clock = StageClock()
     with clock.stage("read"):
-        p = plan(model, material, settings)
+        stage("reading the material")
+        p = plan(model, material, settings, stage)
     out.mkdir(parents=True, exist_ok=True)
     state = out / STATE_FILE
     with clock.stage("fit"):
@@ -120,6 +124,7 @@ def fit_material(model: NeuralModel, material: Path, out: Path, settings: FitSet
     with clock.stage("energy"):
         bounded = energy.fit_bounded(model, p.fitted.unique, z, seed=settings.seed, steps=refit_steps)
     with clock.stage("error"):
+        stage("measuring the fit error")
         errors = fit_error.vector_errors(model, p.measured, bounded.z, bounded.check.energy_scale(),
                                          seed=settings.seed)
     timed = clock.record(whole_process=False)
