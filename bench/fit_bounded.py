@@ -125,17 +125,17 @@ class Probe:
                 "errors": errors}
 
 
-def per_vector(model: NeuralModel, mv: TexelVectors, probe: Probe) -> dict:
+def per_vector(model: NeuralModel, mv: TexelVectors, probe: Probe, seed: int) -> dict:
     """Today's fit of every vector, measured on the probe's vectors and priced per vector."""
     vectors = mv.unique[probe.index]
     # batch 1: every vector gets exactly its 4 samples a step, as among the tens of thousands of a 1k texture
-    z, seconds = cpu(lambda: fitting.fit_latents(model, vectors, STEPS, batch=1))
+    z, seconds = cpu(lambda: fitting.fit_latents(model, vectors, STEPS, batch=1, seed=seed))
     full = torch.zeros(len(mv.unique), 6)
     full[probe.index] = z
     crop = np.unique(probe.crop)
     missing = np.setdiff1d(crop, probe.index)
     if len(missing):
-        full[missing] = fitting.fit_latents(model, mv.unique[missing], STEPS, batch=1)
+        full[missing] = fitting.fit_latents(model, mv.unique[missing], STEPS, batch=1, seed=seed)
     row = probe.accuracy(model, mv.unique, full)
     row.update(design="per vector", fit_cpu=seconds / len(vectors) * len(mv.unique), extrapolated=True,
                vectors_fitted=len(mv.unique))
@@ -143,17 +143,17 @@ def per_vector(model: NeuralModel, mv: TexelVectors, probe: Probe) -> dict:
 
 
 def bounded(model: NeuralModel, mv: TexelVectors, probe: Probe, budget: int, metric: str, transfer: str,
-            fitted: dict) -> dict:
+            fitted: dict, seed: int) -> dict:
     """One bounded design, measured whole; fits are shared between transfers via ``fitted``."""
     key = (budget, metric)
     if key not in fitted:
         counts = np.bincount(mv.inverse, minlength=len(mv.unique)).astype(np.float64)
-        reps, choose = cpu(lambda: representatives.choose(model, mv.unique, counts, budget, metric=metric))
-        z, fit = cpu(lambda: fitting.fit_latents(model, reps.vectors, STEPS))
-        checked, check = cpu(lambda: energy.fit_bounded(model, reps.vectors, z, steps=min(150, STEPS)))
-        drawn = representatives.draw_members(reps, counts)
+        reps, choose = cpu(lambda: representatives.choose(model, mv.unique, counts, budget, seed, metric))
+        z, fit = cpu(lambda: fitting.fit_latents(model, reps.vectors, STEPS, seed=seed))
+        checked, check = cpu(lambda: energy.fit_bounded(model, reps.vectors, z, seed, steps=min(150, STEPS)))
+        drawn = representatives.draw_members(reps, counts, seed)
         estimate, readout = cpu(lambda: fit_error.vector_errors(model, mv.unique[drawn], checked.z,
-                                                                checked.check.energy_scale()))
+                                                                checked.check.energy_scale(), seed))
         weight = np.bincount(reps.of_vector, counts, len(reps))
         fitted[key] = (reps, checked.z, {"choose_cpu": choose, "fit_cpu": fit, "energy_cpu": check,
                                          "readout_cpu": readout, "vectors_fitted": len(reps),
@@ -165,28 +165,28 @@ def bounded(model: NeuralModel, mv: TexelVectors, probe: Probe, budget: int, met
     return row
 
 
-def shipped(model: NeuralModel, folder: Path, out: Path) -> dict:
+def shipped(model: NeuralModel, folder: Path, out: Path, seed: int) -> dict:
     """The shipped fit (``fit_material`` at its defaults) end to end: wall and CPU seconds per stage."""
     start = time.perf_counter()
-    record = fit_material(model, folder, out / "neural", FitSettings(steps=STEPS))
+    record = fit_material(model, folder, out / "neural", FitSettings(steps=STEPS, seed=seed))
     return {"wall_s": time.perf_counter() - start, "stages_cpu_s": record["cpu_s"],
             "stages_wall_s": record["timings_s"], "fit_error_readout": record["fit_error"]["mean"],
             "fitted_vectors": record["fitted_vectors"], "merged_vectors": record["merged_vectors"]}
 
 
-def measure(name: str, model: NeuralModel, env: EnvMap, budgets: list[int], tmp: Path) -> dict:
+def measure(name: str, model: NeuralModel, env: EnvMap, budgets: list[int], seed: int, tmp: Path) -> dict:
     folder = material(name, tmp)
     mv, read = cpu(lambda: read_vectors(folder, QUANT))
     probe = Probe(mv, folder, env)
     print(f"{name}: {mv.shape} texels, {mv.exact_unique} exact, {len(mv.unique)} merged; read {read:.1f} CPU s",
           flush=True)
-    rows = [per_vector(model, mv, probe)]
+    rows = [per_vector(model, mv, probe, seed)]
     fitted: dict = {}
     designs = [(b, "encoder", t) for b in budgets for t in representatives.TRANSFERS]
     designs += [(FIT_BUDGET, m, "nearest") for m in representatives.METRICS if m != "encoder"]
     for budget, metric, transfer in designs:
         if budget < len(mv.unique):
-            rows.append(bounded(model, mv, probe, budget, metric, transfer, fitted))
+            rows.append(bounded(model, mv, probe, budget, metric, transfer, fitted, seed))
     reference = rows[0]["errors"]
     for row in rows:
         # what the design adds to the per-vector fit, vector by vector, over the probe's texels
@@ -197,7 +197,7 @@ def measure(name: str, model: NeuralModel, env: EnvMap, budgets: list[int], tmp:
               flush=True)
     return {"texture": list(mv.shape), "texels": int(len(mv.inverse)), "exact_unique": mv.exact_unique,
             "merged_vectors": len(mv.unique), "crop_noise_floor": probe.noise_floor, "designs": rows,
-            "shipped_fit": shipped(model, folder, tmp / name)}
+            "shipped_fit": shipped(model, folder, tmp / name, seed)}
 
 
 def chart(report: dict, path: Path) -> None:
@@ -235,16 +235,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--materials", nargs="+", default=list(MATERIALS), choices=MATERIALS)
     parser.add_argument("--budgets", type=int, nargs="+", default=[1024, FIT_BUDGET, 16384])
+    parser.add_argument("--seed", type=int, default=0,
+                        help="seed of every fit and of the representatives (the probe is the same at every seed)")
     add_out_argument(parser, "fit_bounded.json")
     args = parser.parse_args()
     torch.set_num_threads(1)
     model, env = trained.load(trained.SHIPPED), EnvMap.load(DEFAULT_PROBE)
-    report: dict = {"steps": STEPS, "threads": 1, "budgets": args.budgets, "shipped_budget": FIT_BUDGET,
+    report: dict = {"steps": STEPS, "threads": 1, "seed": args.seed, "budgets": args.budgets, "shipped_budget": FIT_BUDGET,
                     "probe": {"texels": TEXEL_PROBE, "distinct_vectors": VECTOR_PROBE, "crop": CROP},
                     "flip_convention": FLIP_CONVENTION, "materials": {}}
     with tempfile.TemporaryDirectory(prefix="richmat_fit_bounded_") as tmp:
         for name in args.materials:
-            report["materials"][name] = measure(name, model, env, args.budgets, Path(tmp))
+            report["materials"][name] = measure(name, model, env, args.budgets, args.seed, Path(tmp))
             write_report(args.out, report, [trained.SHIPPED])
             chart(report, args.out.with_suffix(".png"))
 
