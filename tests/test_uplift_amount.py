@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from richmat_addon.core.enhance import auto_touch, baseline, enhance, resolve_type
+from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.gltf_container import load_gltf
 from richmat_addon.core.gltf_materials import read_materials
 from richmat_addon.core.gltf_mesh import read_geometry
@@ -40,7 +41,7 @@ def test_auto_keeps_the_tyres_dark_and_amount_zero_gives_back_the_pbr_material(t
     assert before < 0.06  # black rubber
     auto, _ = resolve_type(pbr, "auto", 0)
     lifts = {}
-    for type_ in range(6):
+    for type_ in range(len(TYPES)):
         full = luminance(mean_albedo(enhance(pbr, type_, 0, normals, positions), uv))
         touched = luminance(mean_albedo(enhance(pbr, type_, 0, normals, positions, touch=True), uv))
         lifts[type_] = (full / before, touched / before)

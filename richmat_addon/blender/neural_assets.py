@@ -7,11 +7,11 @@ from types import SimpleNamespace
 
 import bpy
 
+from ..core.neural_folder import LATENT_FILES
 from . import neural_backend
 from .pbr_source import InputProblem
 
 ADDON = __package__.rsplit(".", 1)[0]  # "bl_ext.<repo>.richmat" when installed as an extension
-LATENT_FILES = ("latent_0.exr", "latent_1.exr")
 LATENT_NODES = ("neural_latent_0", "neural_latent_1")
 _FRAME = "richmat_frame_neural"
 
