@@ -11,9 +11,10 @@ size, not its detail), enhanced at the farm's defaults (type auto, seed 0), at t
   vector times the material's vectors (the cost is linear in them past 4 096,
   ``fit_budget.json``).
 - **bounded** at each ``--budgets`` (k-means in the encoder's latent space, each texel taking
-  its representative's latent: what ships at 4 096), and at 4 096 with the other metrics of
-  ``representatives.METRICS`` and the ``residual`` transfer: measured whole, CPU seconds of
-  choosing the representatives, fitting them, the energy check and the error readout.
+  its representative's latent: what ships at ``FIT_BUDGET``), each also with the ``residual``
+  transfer, and at ``FIT_BUDGET`` with the other metrics of ``representatives.METRICS``:
+  measured whole, CPU seconds of choosing the representatives, fitting them, the energy check
+  and the error readout.
 
 Accuracy: the fit error (the add-on's measure, ``fit_error.py``) of the probe's vectors
 under the latents each design gives them: 2 048 texels drawn at random (texel-weighted: what
@@ -24,7 +25,7 @@ the 32 x 32 crop with the most distinct vectors, a flat patch at 45 degrees unde
 neural against analytic (LDR-FLIP), with the analytic crop at another seed as the noise floor.
 
     python -m bench.fit_bounded [--materials WaterBottle wooden_table_02_1k wooden_table_02_1k@4k ...]
-        [--budgets 1024 4096 16384] [--out docs/reports/fit_bounded.json]
+        [--budgets 256 512 1024 2048 4096 16384] [--seed 0] [--out docs/reports/fit_bounded.json]
 """
 from __future__ import annotations
 
@@ -234,7 +235,7 @@ def chart(report: dict, path: Path) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--materials", nargs="+", default=list(MATERIALS), choices=MATERIALS)
-    parser.add_argument("--budgets", type=int, nargs="+", default=[1024, FIT_BUDGET, 16384])
+    parser.add_argument("--budgets", type=int, nargs="+", default=[256, 512, 1024, 2048, 4096, 16384])
     parser.add_argument("--seed", type=int, default=0,
                         help="seed of every fit and of the representatives (the probe is the same at every seed)")
     add_out_argument(parser, "fit_bounded.json")

@@ -22,9 +22,10 @@ from .schema import PARAMS, bounds
 
 QUANT = 1.0 / 256.0
 # Vectors a fit fits at most: past it, representatives (torch_models/neural/representatives.py).
-# 4096 vectors at 4 samples each fill the fit's 16 384-sample step, so a bounded fit costs what a
-# fit of any small material does (bench/fit_bounded.py charts the choice).
-FIT_BUDGET = 4096
+# The fit's 16 384-sample step then gives each of them 16 samples where a per-vector fit gives 4:
+# fewer, better-fitted representatives err less than more, noisier ones, and choosing them is
+# cheaper (bench/fit_bounded.py charts the choice against 256-16 384 and the per-vector fit).
+FIT_BUDGET = 1024
 
 
 def normalise(vectors: np.ndarray) -> np.ndarray:
