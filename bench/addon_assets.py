@@ -14,7 +14,8 @@ nothing visible and has no render.
 
 The neural preview is judged against the Bake render, the analytic material it
 compresses, under the same camera and light: the report holds their mean FLIP
-over the asset's pixels, and the step sheet shows one row per asset with Bake
+over the asset's pixels and its noise floor (the Bake render against itself at the
+next seed), and the step sheet shows one row per asset with Bake
 and Preview side by side and the FLIP map beside them.
 
     python -m bench.addon_assets [--assets WaterBottle ...] [--steps 100] [--size 320] [--samples 32]
@@ -108,6 +109,17 @@ def render_png(name):
     scene.render.filepath = str(RENDERS / f"{name}.png")
     bpy.ops.render.render(write_still=True)
     return scene.render.filepath, time.perf_counter() - t
+
+
+def render_with_floor(name):
+    """The render, then the same at the next seed (``NAME_floor``): the noise floor of a FLIP against it."""
+    result = render_png(name)
+    scene.cycles.seed += 1
+    try:
+        render_png(f"{name}_floor")
+    finally:
+        scene.cycles.seed -= 1
+    return result
 
 
 def render_mask():
@@ -204,8 +216,9 @@ def fit_all():
                 continue
             record = neural_folder.read(Path(enhanced.richmat.neural_dir)).record
             details[enhanced.name].update({k: record.get(k) for k in (
-                "texels", "exact_unique_vectors", "fitted_vectors", "encoder_only", "steps", "refit_steps", "final_loss",
-                "furnace", "decoder_sha256")})
+                "texels", "exact_unique_vectors", "merged_vectors", "fitted_vectors", "budget", "encoder_only", "steps",
+                "refit_steps", "final_loss", "furnace", "decoder_sha256", "timings_s", "cpu_s")})
+            details[enhanced.name]["fit_error"] = (record.get("fit_error") or {}).get("mean")
     return errors, details
 
 
@@ -239,7 +252,7 @@ scene.richmat.fit_steps = FIT_STEPS
 scene.richmat.fit_budget = FIT_BUDGET
 step("original", import_asset)
 step("uplift", lambda: each_object("uplift_material"))
-step("bake", lambda: each_object("bake_parameters"))
+step("bake", lambda: each_object("bake_parameters"), render_with_floor)
 step("fit", fit_all, render_latents)
 step("preview", lambda: each_object("preview_neural"))
 step("export", lambda: each_object("export_materialx", directory=str(OUT / "mtlx")), None)
@@ -277,6 +290,8 @@ def step_images(record: dict, renders: Path) -> dict[str, np.ndarray]:
         error, _ = flip_map(images["bake"], images["preview"])
         images["flip"] = np.where(mask, error, 0.0)
         record["preview_flip_vs_bake"] = float(error[mask].mean())
+        floor, _ = flip_map(images["bake"], read_png(renders / "bake_floor.png"))
+        record["bake_noise_floor"] = float(floor[mask].mean())  # the Bake render against itself at the next seed
         record["asset_pixels"] = int(mask.sum())
     return images
 
@@ -293,7 +308,8 @@ def step_sheet(rows: dict[str, tuple[dict, dict[str, np.ndarray]]], path: Path) 
             if key == "flip":
                 if "flip" in images:
                     ax.imshow(images["flip"], cmap="magma", vmin=0, vmax=1)
-                    title = f"{title}\nmean {record['preview_flip_vs_bake']:.3f} on the asset"
+                    title = (f"{title}\nmean {record['preview_flip_vs_bake']:.3f} on the asset "
+                             f"(floor {record['bake_noise_floor']:.3f})")
                 ax.set_title(title, fontsize=10)
                 continue
             step = steps.get(key)
@@ -355,7 +371,8 @@ def run(args: argparse.Namespace, zip_path: Path) -> None:
         rows[name] = (record, images)
         step_sheet(rows, args.sheet)
         print(name, {r["step"]: (r["ok"], round(r["seconds"], 1)) for r in record["records"]},
-              f"FLIP preview vs bake {record.get('preview_flip_vs_bake', float('nan')):.3f}", flush=True)
+              f"FLIP preview vs bake {record.get('preview_flip_vs_bake', float('nan')):.3f} "
+              f"(floor {record.get('bake_noise_floor', float('nan')):.3f})", flush=True)
 
 
 if __name__ == "__main__":
