@@ -215,12 +215,15 @@ def test_quoted_numbers_match_their_reports():
     assert not bad, "numbers that drifted from their reports:\n" + "\n".join(bad)
 
 
+HEADLINES_AT_MOST = 6  # the README's table is for newcomers: the rest lives in the design notes
+
+
 def test_every_headline_row_has_its_numbers_checked():
     text = (REPO / "README.md").read_text().partition("## Headline numbers")[2].partition("\n## ")[0]
     table = [ln for ln in text.splitlines() if ln.startswith("| ") and not ln.startswith("| what ")]
     quotes = [collapsed(BRACED.sub(r"\1", r.quote)) for r in ROWS if r.doc == "README.md"]
     unchecked = [ln[:80] for ln in table if not any(q in collapsed(ln) for q in quotes)]
-    assert len(table) >= 10 and not unchecked, unchecked
+    assert 1 <= len(table) <= HEADLINES_AT_MOST and not unchecked, (len(table), unchecked)
 
 
 def test_every_note_citing_reports_has_its_numbers_checked():
