@@ -146,13 +146,14 @@ def test_new_decoder_against_a_runs_frozen_encoder(tmp_path: Path) -> None:
 
 def test_every_committed_config_loads_and_starts_inside_the_repository() -> None:
     """A misspelt key in a committed config fails here, not an hour into a run;
-    a fine-tune's ``init`` names a run folder inside the checkout, never outside it."""
+    a fine-tune's ``init`` names a run folder inside the checkout, never outside it.
+    The shipped decoder's recipe and the MLP baseline's (its base run, then the fine-tune) are committed."""
     from torch_models.cli_train_decoder import CONFIGS
     from torch_models.neural.kinds import load_config
 
     repo = CONFIGS.parents[2]
     paths = sorted(CONFIGS.glob("*.json"))
-    assert len(paths) >= 4
+    assert {"decoder_hybrid_sheen.json", "decoder_cpu.json", "decoder_relative.json"} <= {p.name for p in paths}
     for path in paths:
         cfg = load_config(path)
         assert cfg.steps > 0, path.name
