@@ -1,8 +1,6 @@
 """Decoders side by side on Table 1's cases and on vectors of held-out real assets (issue 41, items 2 and 4).
 
-Each decoder (``--weights``, repeatable; default: the shipped one, the view-gated one trained
-with the shipped recipe, and the two view-gated ones trained on uplifted real materials, against
-the shipped encoder frozen and with their own) fits every case's
+Each decoder (``--weights``, repeatable; default: the shipped one alone) fits every case's
 vector in one fit (``--per-vector`` samples per vector and step, the add-on's 300 steps), and
 the torch renderer draws the ball of the analytic material (two seeds: the noise floor) and of
 each decoder as the preview shows it: a decoder whose gates read both directions through its
@@ -23,6 +21,15 @@ the torch cost of its preview form's gates per shading point.
 
     python -m bench.decoder_candidates [--weights FOLDER ...] [--per-type 2] [--per-material 2]
         [--out docs/reports/decoder_candidates.json]
+
+The candidates its reports measured (``LABELS``) have left the package; each is in git at 29f9efd
+(docs/history.md, "Candidate decoders and configs"). To measure one again beside the shipped decoder::
+
+    git checkout 29f9efd -- torch_models/neural/weights/view_gates_wide
+    python -m bench.decoder_candidates --weights torch_models/neural/weights \
+        --weights torch_models/neural/weights/view_gates_wide
+
+(The view-gated one, ``view_gates``, is also kept as a test fixture in ``tests/data/view_gated_decoder``.)
 """
 from __future__ import annotations
 
@@ -34,7 +41,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from bench.common import FLIP_CONVENTION, add_out_argument, add_weights_argument, pyplot, save_chart, write_report
+from bench.common import (FLIP_CONVENTION, add_out_argument, add_weights_argument, pyplot, save_chart,
+                          weights_folders, write_report)
 from bench.neural_error_budget import ASSETS as HELD_OUT_ASSETS
 from support.agreement_cases import Case, cases
 from support.real_cases import real_cases
@@ -48,15 +56,15 @@ from torch_models.render.flip import mean_flip
 
 FIT_STEPS = 300  # the add-on's Fit Steps
 FREE_STEPS = 1500  # the free lobe form's fit: 168 parameters per case where a latent has 6
-DEFAULT_CANDIDATES = ("view_gates", "real", "view_gates_real")  # weight folders beside the shipped decoder's
-LABELS = {"shipped": "shipped, closure form (the preview)", "shipped_full": "shipped in full (torch only)",
-          "view_gates": "view-gated, own encoder", "real": "view-gated, real vectors, shipped encoder",
-          "view_gates_real": "view-gated, real vectors, own encoder",
-          "view_gates_real_l4": "the same with four GGX lobes",
-          "view_gates_l4": "view-gated, four GGX lobes, own encoder",
-          "view_gates_l4_seed1": "the same, training seed 1",
-          "view_gates_wide": "view-gated, head 128 wide", "view_gates_wide_seed1": "the same, training seed 1",
-          "lobe_form": "lobe form, free per case (no decoder beats it)"}
+LABELS = {  # by weights folder name: the shipped decoder's, then the candidates (in git at 29f9efd)
+    "shipped": "shipped, closure form (the preview)", "shipped_full": "shipped in full (torch only)",
+    "view_gates": "view-gated, own encoder", "real": "view-gated, real vectors, shipped encoder",
+    "view_gates_real": "view-gated, real vectors, own encoder",
+    "view_gates_real_l4": "the same with four GGX lobes",
+    "view_gates_l4": "view-gated, four GGX lobes, own encoder",
+    "view_gates_l4_seed1": "the same, training seed 1",
+    "view_gates_wide": "view-gated, head 128 wide", "view_gates_wide_seed1": "the same, training seed 1",
+    "lobe_form": "lobe form, free per case (no decoder beats it)"}
 
 
 def fitted(model: NeuralModel, vectors: np.ndarray, per_vector: int) -> tuple[torch.Tensor, float]:
@@ -145,7 +153,7 @@ def main() -> None:
     add_out_argument(parser, "decoder_candidates.json")
     args = parser.parse_args()
     start = time.perf_counter()
-    folders = args.weights or [trained.SHIPPED, *(trained.SHIPPED / c for c in DEFAULT_CANDIDATES)]
+    folders = weights_folders(args)
     names = ["shipped" if f.resolve() == trained.SHIPPED.resolve() else f.name for f in folders]
     decoders = {name: trained.load(f) for name, f in zip(names, folders)}
     setup = BallSetup.default(args.resolution, args.spp, 0)

@@ -113,13 +113,16 @@ def test_albedo_loss_vanishes_for_the_analytic_model_and_sees_a_wrong_albedo() -
     assert exact < 0.01 and wrong > 20 * exact, (exact, wrong)
 
 
-def test_fine_tune_from_a_run_keeps_its_encoder(tmp_path: Path) -> None:
+def test_fine_tune_from_a_run_keeps_its_encoder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     base = tmp_path / "base.json"
     base.write_text(json.dumps(dict(TINY, steps=20, sampler_steps=0)))
-    assert main(["train-decoder", "--config", str(base), "--out", str(tmp_path / "base")]) == 0
     tune = tmp_path / "tune.json"
     tune.write_text(json.dumps(dict(TINY, steps=10, sampler_steps=0, init="base", freeze_encoder=True,
                                     albedo_weight=0.1, albedo_materials=8, albedo_samples=16)))
+    # before its init run exists, the fine-tune stops at once with a line naming that run
+    assert main(["train-decoder", "--config", str(tune), "--out", str(tmp_path / "tune")]) == 2
+    assert f"init run {(tmp_path / 'base').resolve()} holds no weights.safetensors" in capsys.readouterr().err
+    assert main(["train-decoder", "--config", str(base), "--out", str(tmp_path / "base")]) == 0
     assert main(["train-decoder", "--config", str(tune), "--out", str(tmp_path / "tune")]) == 0
     before, after = (load_file(str(tmp_path / run / "weights.safetensors")) for run in ("base", "tune"))
     assert all(torch.equal(before[k], after[k]) for k in before if k.startswith("encoder."))
@@ -146,13 +149,14 @@ def test_new_decoder_against_a_runs_frozen_encoder(tmp_path: Path) -> None:
 
 def test_every_committed_config_loads_and_starts_inside_the_repository() -> None:
     """A misspelt key in a committed config fails here, not an hour into a run;
-    a fine-tune's ``init`` names a run folder inside the checkout, never outside it."""
+    a fine-tune's ``init`` names a run folder inside the checkout, never outside it.
+    The shipped decoder's recipe and the MLP baseline's (its base run, then the fine-tune) are committed."""
     from torch_models.cli_train_decoder import CONFIGS
     from torch_models.neural.kinds import load_config
 
     repo = CONFIGS.parents[2]
     paths = sorted(CONFIGS.glob("*.json"))
-    assert len(paths) >= 4
+    assert {"decoder_hybrid_sheen.json", "decoder_cpu.json", "decoder_relative.json"} <= {p.name for p in paths}
     for path in paths:
         cfg = load_config(path)
         assert cfg.steps > 0, path.name

@@ -34,6 +34,9 @@ def run(args: argparse.Namespace) -> int:
         cfg = load_config(args.config)
     except (TypeError, ValueError) as exc:
         raise InputError(f"{args.config}: not a training configuration ({exc})") from None
+    if cfg.init and not (Path(cfg.init) / "weights.safetensors").is_file():
+        raise InputError(f"{args.config}: its init run {cfg.init} holds no weights.safetensors "
+                         "(train that run first; runs removed from the package: docs/history.md)")
     trainer = Trainer(cfg, args.out)
     if args.resume and trainer.resume():
         print(f"resuming at step {trainer.step}")
