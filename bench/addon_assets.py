@@ -19,7 +19,7 @@ next seed), and the step sheet shows one row per asset with Bake
 and Preview side by side and the FLIP map beside them.
 
     python -m bench.addon_assets [--assets WaterBottle ...] [--steps 100] [--size 320] [--samples 32]
-        [--texture-size 128] [--out docs/reports/addon_assets.json] [--sheet docs/reports/addon_steps.png]
+        [--texture-size 128] [--upscale] [--out docs/reports/addon_assets.json] [--sheet docs/reports/addon_steps.png]
 
 The asset's images are scaled down to ``--texture-size`` texels first (default
 128; 0 keeps them): Bake writes maps at the input textures' resolution and the
@@ -136,13 +136,14 @@ def render_mask():
 
 
 def import_asset():
-    """The glTF, its images scaled down to TEXTURE_SIZE texels at most (bake and fit cost grow with texels)."""
+    """The glTF, its images scaled down to TEXTURE_SIZE texels at most (bake and fit cost grow with texels),
+    or, with UPSCALE, up to it: a 4k copy of a 1k scan has a 4k scan's distinct vectors, not its detail."""
     bpy.ops.import_scene.gltf(filepath=ASSET)
     sizes = {}
     for image in bpy.data.images:
         w, h = image.size
         k = max(w, h) / TEXTURE_SIZE if TEXTURE_SIZE else 0
-        if k > 1:
+        if k > 1 or (UPSCALE and 0 < k < 1):
             image.scale(max(1, round(w / k)), max(1, round(h / k)))
         sizes[image.name] = [w, h, *image.size]
     return [], {"images": sizes}
@@ -267,7 +268,7 @@ def run_asset(name: str, zip_path: Path, folder: Path, args: argparse.Namespace)
     settings = (f"ASSET = {str(SHARED_ASSETS / 'models' / f'{name}.glb')!r}\nOUT = {str(folder / 'out')!r}\n"
                 f"RENDERS = {str(folder / 'renders')!r}\nPROBE = {str(DEFAULT_PROBE)!r}\n"
                 f"FIT_STEPS = {args.steps}\nSIZE = {args.size}\nSAMPLES = {args.samples}\n"
-                f"TEXTURE_SIZE = {args.texture_size}\nFIT_BUDGET = {args.fit_budget}\n")
+                f"TEXTURE_SIZE = {args.texture_size}\nUPSCALE = {args.upscale}\nFIT_BUDGET = {args.fit_budget}\n")
     start = time.perf_counter()
     result = run_blender(script(settings + PIPELINE, zip_path), folder, timeout=4 * 3600)
     result.update(asset=name, wall_seconds=time.perf_counter() - start)
@@ -339,6 +340,8 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=32, help="Cycles samples per pixel of the renders")
     parser.add_argument("--texture-size", type=int, default=128,
                         help="scale the asset's images down to this many texels at most (0: as stored)")
+    parser.add_argument("--upscale", action="store_true",
+                        help="scale smaller images up to --texture-size too (the fit's cost at a larger scan)")
     add_out_argument(parser, "addon_assets.json")
     parser.add_argument("--sheet", type=Path, default=REPORTS / "addon_steps.png", help="the step sheet (PNG)")
     args = parser.parse_args()
@@ -353,7 +356,7 @@ def run(args: argparse.Namespace, zip_path: Path) -> None:
         raise SystemExit(f"the extension ships decoder {bundled[:8]}, not the shipped {trained.digest()[:8]}")
     report = dict(probe=DEFAULT_PROBE.name, extension=zip_path.name,
                   extension_sha256=hashlib.sha256(zip_path.read_bytes()).hexdigest(),
-                  settings=dict(fit_steps=args.steps, fit_budget=args.fit_budget, texture_size=args.texture_size, render_size=args.size,
+                  settings=dict(fit_steps=args.steps, fit_budget=args.fit_budget, texture_size=args.texture_size, upscale=args.upscale, render_size=args.size,
                                 render_samples=args.samples, torch_threads=os.environ.get("OMP_NUM_THREADS", "all")),
                   assets={})
     rows = {}
