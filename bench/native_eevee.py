@@ -268,6 +268,7 @@ def chart(report: dict, path: Path) -> None:
     c.invert_yaxis()
     c.set_xlabel("EEVEE vs Cycles, FLIP as on the left")
     c.set_title("EEVEE's settings, one changed at a time", fontsize=9)
+    c.set_xlim(0, 1.4 * max(f for r in sweep_rows for f in r["flip"].values()))  # room for the legend
     c.legend(fontsize=8, loc="lower right")
     save_chart(fig, path)
 
