@@ -21,6 +21,7 @@ import json
 import shutil
 import sys
 from pathlib import Path
+from typing import Callable, TypeVar
 
 REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
@@ -35,6 +36,7 @@ from batch.options import (  # noqa: E402
     DENOISE_QUALITIES, DEVICES, GRAPHS)
 from richmat_addon.core.stage_clock import StageClock  # noqa: E402
 
+Built = TypeVar("Built")
 BAD_INPUT_EXIT = 3  # batch.pipeline.BAD_INPUT_EXIT (not imported: the orchestrator side stays bpy-free)
 
 
@@ -87,13 +89,14 @@ def prepare(args: argparse.Namespace) -> None:
     (args.work / "asset.json").write_text(json.dumps(record, indent=1, ensure_ascii=False, default=str))
 
 
-def enhanced_slots(scene: bpy.types.Scene, prepared: dict, work: Path, graph: str
-                   ) -> list[tuple[bpy.types.MaterialSlot, tuple[bpy.types.Material, bpy.types.Material]]]:
-    """Every material slot of ``scene`` that holds a prepared material, with that material's (beauty,
-    intrinsics) pair built from ``work/materials``."""
+def enhanced_slots(scene: bpy.types.Scene, prepared: dict, work: Path, graph: str,
+                   build: Callable[[Path, str], Built] | None = None) -> list[tuple[bpy.types.MaterialSlot, Built]]:
+    """Every material slot of ``scene`` that holds a prepared material, with what ``build`` makes of that
+    material's folder in ``work/materials``: by default its (beauty, intrinsics) pair (the intrinsics need
+    the fit's latents; ``dataset_material.beauty`` alone does not)."""
     from batch import dataset_material
 
-    built = {m["name"]: dataset_material.build(work / "materials" / m["folder"], graph)
+    built = {m["name"]: (build or dataset_material.build)(work / "materials" / m["folder"], graph)
              for m in prepared["materials"]}
     return [(s, built[s.material.name]) for o in scene.objects for s in getattr(o, "material_slots", [])
             if s.material is not None and s.material.name in built]

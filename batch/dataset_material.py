@@ -16,6 +16,7 @@ import bpy
 
 from richmat_addon.blender.cycles_builder import COLOR_SPACE_COLOR, COLOR_SPACE_DATA, Graph, build_material
 from richmat_addon.core import material_folder, neural_folder
+from richmat_addon.core.maps import EnhancedMaterial
 
 
 def _aov(tree: bpy.types.NodeTree, name: str) -> bpy.types.Node:
@@ -32,12 +33,25 @@ def _texture(tree: bpy.types.NodeTree, path: str, colour: bool) -> bpy.types.Nod
     return node
 
 
-def build(folder: Path, graph: Graph = "osl") -> tuple[bpy.types.Material, bpy.types.Material]:
-    """(beauty material, intrinsics material) of one prepared material folder."""
+def _read(folder: Path) -> tuple[EnhancedMaterial, dict[str, str]]:
+    """The enhanced material of one prepared material folder and its maps' files by name."""
     baked = material_folder.read(folder)
-    mat = baked.material()
-    paths = {name: str(path) for name, path in baked.texture_paths.items()}
-    beauty = build_material(mat, paths, name=f"richmat_{mat.name}", graphs=(graph,))
+    return baked.material(), {name: str(path) for name, path in baked.texture_paths.items()}
+
+
+def _beauty(mat: EnhancedMaterial, paths: dict[str, str], graph: Graph) -> bpy.types.Material:
+    return build_material(mat, paths, name=f"richmat_{mat.name}", graphs=(graph,))
+
+
+def beauty(folder: Path, graph: Graph = "osl") -> bpy.types.Material:
+    """The beauty material alone: for a folder the fit has not reached, whose intrinsics have no latents."""
+    return _beauty(*_read(folder), graph)
+
+
+def build(folder: Path, graph: Graph = "osl") -> tuple[bpy.types.Material, bpy.types.Material]:
+    """(beauty material, intrinsics material) of one prepared and fitted material folder."""
+    mat, paths = _read(folder)
+    shaded = _beauty(mat, paths, graph)
     material = bpy.data.materials.new(f"richmat_aov_{mat.name}")
     tree = material.node_tree
     tree.nodes.clear()
@@ -60,4 +74,4 @@ def build(folder: Path, graph: Graph = "osl") -> tuple[bpy.types.Material, bpy.t
                 xyz.inputs[axis].default_value = value
             tree.links.new(xyz.outputs["Vector"], node.inputs["Color"])
     _aov(tree, "coverage").inputs["Value"].default_value = 1.0
-    return beauty, material
+    return shaded, material

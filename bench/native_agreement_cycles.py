@@ -6,9 +6,14 @@ JOB.json holds {"cases": [...], "probe", "resolution", "samples", "seed", "out"}
 optionally, "configs" (default ``CPU_CONFIGS``: Cycles on the CPU reading the OSL
 graph, then the native one; a configuration's own "samples" overrides the job's, and
 an EEVEE one with "eevee_form": false reads the native form Cycles reads, rendering
-only the cases where EEVEE's own form differs),
+only the cases where EEVEE's own form differs, and a configuration's "settings" maps
+scene properties by dotted path, such as "eevee.use_fast_gi" or "world.probe_resolution",
+to the values it renders with),
 "frames" (default ``FRAMES``) and "control" (also render a plain Principled BSDF
-ball, which tells a compiled EEVEE shader from EEVEE's fallback). Writes
+ball, which tells a compiled EEVEE shader from EEVEE's fallback). A job with "asset",
+the folder of the farm's prepare stage (``batch/blender_job.py prepare``), and "name"
+renders that asset instead of the ball: its materials as the farm builds them (native
+graph), seen by the farm's camera at its first frame, under the preview probe. Writes
 OUT/<case>_<label>_<frame>.exr, OUT/times.json ({case: {label: {"first": [wall, cpu],
 "frame": [wall, cpu]}}}, seconds; a configuration whose device is missing is left out)
 and OUT/devices.json ({label: the devices it rendered on; for EEVEE, the OpenGL renderer,
@@ -53,7 +58,8 @@ def use(scene: bpy.types.Scene, config: dict, samples: int) -> list[str]:
     from richmat_addon.blender import preview_scene
 
     scene.render.engine = config["engine"]
-    preview_scene.use_mesh_ball(config["engine"] != "CYCLES")
+    if preview_scene.BALL in bpy.data.node_groups:
+        preview_scene.use_mesh_ball(config["engine"] != "CYCLES")
     samples = config.get("samples", samples)
     if config["engine"] != "CYCLES":
         scene.eevee.taa_render_samples = samples
@@ -74,6 +80,17 @@ def use(scene: bpy.types.Scene, config: dict, samples: int) -> list[str]:
     return [device.name for device in prefs.devices if device.use]
 
 
+def set_property(scene: bpy.types.Scene, path: str, value: object) -> object:
+    """Set the property at dotted ``path`` under ``scene`` to ``value``; its value before."""
+    *owners, name = path.split(".")
+    owner = scene
+    for attribute in owners:
+        owner = getattr(owner, attribute)
+    before = getattr(owner, name)
+    setattr(owner, name, value)
+    return before
+
+
 def use_in_eevee(material: bpy.types.Material, own_form: bool) -> bool:
     """Link EEVEE's output to EEVEE's own form of the native graph or to the form Cycles reads; False
     when asked for Cycles' form of a material that has no other (EEVEE would draw the same)."""
@@ -85,6 +102,18 @@ def use_in_eevee(material: bpy.types.Material, own_form: bool) -> bool:
     source = nodes[native_builder.EEVEE_NODE if own_form else native_builder.NODE]
     material.node_tree.links.new(source.outputs[0], nodes[cycles_builder.EEVEE_OUTPUT_NODE].inputs["Surface"])
     return True
+
+
+def use_asset(scene: bpy.types.Scene, work: Path) -> None:
+    """Give the prepared asset's slots in ``scene`` (opened from ``work``/scene.blend) their native materials
+    and look at it with the farm's camera at its first frame (seed 0, whatever the job's seed)."""
+    from batch import bl_render, dataset_material
+    from batch.blender_job import enhanced_slots
+
+    prepared = json.loads((work / "asset.json").read_text(encoding="utf-8"))
+    for slot, beauty in enhanced_slots(scene, prepared, work, "native", dataset_material.beauty):
+        slot.material = beauty
+    bl_render.orbit(scene, 1, bl_render.start_azimuth(prepared["asset_id"], 0))
 
 
 def read_json(path: Path) -> dict:
@@ -101,16 +130,22 @@ def main(job_path: Path) -> None:
     job = json.loads(job_path.read_text())
     out = Path(job["out"])
     configs = job.get("configs", CPU_CONFIGS)
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    asset = Path(job["asset"]) if "asset" in job else None
+    if asset is None:
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+    else:
+        bpy.ops.wm.open_mainfile(filepath=str(asset / "scene.blend"), load_ui=False, use_scripts=False)
     scene = bpy.context.scene
     preview_scene.setup(scene, PreviewScene(resolution=job["resolution"]), Path(job["probe"]), None,
-                        job["samples"], job["seed"])
+                        job["samples"], job["seed"], with_ball=asset is None)
+    scene.render.film_transparent = True  # the alpha says which pixels are the ball's or the asset's
+    if asset is not None:
+        use_asset(scene, asset)  # before the frame range: the farm's camera sets its own
     scene.render.threads_mode, scene.render.threads = "FIXED", 1
     scene.render.use_persistent_data = True
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.image_settings.color_depth = "32"
     scene.frame_start, scene.frame_end = 1, job.get("frames", FRAMES)
-    ball = bpy.data.node_groups[preview_scene.BALL].nodes["Set Material"].inputs["Material"]
     stamps: list[tuple[float, float]] = []
 
     def stamp(*_: object) -> None:
@@ -119,25 +154,33 @@ def main(job_path: Path) -> None:
     bpy.app.handlers.render_pre.append(stamp)
     bpy.app.handlers.render_post.append(stamp)
     cases = [Case(**spec) for spec in job["cases"]]
-    materials = [(c.name, cycles_builder.build_material(c.material(), {}, c.name, node=c.graph_node())) for c in cases]
+    materials: list[tuple[str, bpy.types.Material | None]] = [
+        (c.name, cycles_builder.build_material(c.material(), {}, c.name, node=c.graph_node())) for c in cases]
     if job.get("control"):
         materials.append((CONTROL, bpy.data.materials.new(CONTROL)))
+    if asset is not None:
+        materials = [(job["name"], None)]  # None: the asset's own materials (use_asset), no ball
     # Runs into the same folder add to its records (a GPU machine can give EEVEE and Cycles separate time limits).
     times: dict[str, dict[str, dict[str, list[float]]]] = read_json(out / "times.json")
     devices: dict[str, list[str]] = read_json(out / "devices.json")
     for name, material in materials:
-        ball.default_value = material
+        if material is not None:
+            bpy.data.node_groups[preview_scene.BALL].nodes["Set Material"].inputs["Material"].default_value = material
         for config in configs:
             devices[config["label"]] = use(scene, config, job["samples"])
             if not devices[config["label"]]:
                 continue
-            if cycles_builder.cycles_graph(material) is not None:
+            if material is not None and cycles_builder.cycles_graph(material) is not None:
                 cycles_builder.use_in_cycles(material, config["graph"])
-            if config["engine"] != "CYCLES" and not use_in_eevee(material, config.get("eevee_form", True)):
+            if (config["engine"] != "CYCLES" and material is not None
+                    and not use_in_eevee(material, config.get("eevee_form", True))):
                 continue
             scene.render.filepath = str(out / f"{name}_{config['label']}_")
+            saved = {path: set_property(scene, path, value) for path, value in config.get("settings", {}).items()}
             stamps.clear()
             bpy.ops.render.render(animation=True)
+            for path, value in saved.items():
+                set_property(scene, path, value)
             if config["engine"] != "CYCLES":
                 import gpu
 

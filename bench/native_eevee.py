@@ -20,6 +20,13 @@ the native graph of its own (``Family.eevee``: the sheen), a third child renders
 reading Cycles' form too, side by side. The brightness ratio (EEVEE over Cycles, mean
 displayed luminance over the ball) says which way a lobe misses.
 
+The asset itself renders too: the farm's prepare stage uplifts it (bench/render_speed.py's
+``farm_prepare``), and EEVEE and Cycles (two seeds) draw its textured meshes with the farm's
+materials (native graph) from the farm's first camera under the same probe; its FLIP is the
+mean over the asset's pixels. Last, EEVEE's settings that govern the world's light and
+reflections (``SETTINGS``) each render the Principled ball and the first Type 0 draw, against
+the same Cycles renders: whether any of them brings EEVEE closer than the preview's settings.
+
     python -m bench.native_eevee [--per-type N] [--asset NAME] [--eevee-samples N] [--out FILE.json]
 
 Target (issue 52): mean FLIP <= 0.05 and worst <= 0.10 per type, or the reason per lobe.
@@ -40,8 +47,10 @@ from bench.common import FLIP_CONVENTION, add_out_argument, pyplot, run_python, 
 from bench.native_agreement import DEFAULT_PROBE, group_of, labelled_sheet
 from bench.native_agreement_cycles import CONTROL, CPU_CONFIGS, read_json
 from bench.native_gpu import GPU_CONFIGS
+from bench.render_speed import farm_prepare
 from richmat_addon.core.folder_io import read_exr
 from support.agreement_cases import Case, cases
+from support.paths import SHARED_ASSETS
 from support.real_cases import real_cases
 from torch_models.render.flip import flip_map
 from torch_models.render.tonemap import agx
@@ -52,6 +61,19 @@ CYCLES = CPU_CONFIGS[1]  # Cycles on the CPU, native graph (SVM)
 CYCLES_FORM = "eevee_cycles_form"  # EEVEE reading the native graph's form for Cycles, where EEVEE has its own
 REFERENCE = "Principled BSDF"  # the control ball's group: Blender's default material in both engines
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+ASSET = "asset"  # the renders folder of the textured asset
+SWEEP = "settings"  # the renders folder of the settings sweep
+PREVIEW = "preview scene (sun_threshold 0, Blender's defaults otherwise)"  # the sweep's baseline
+# EEVEE's settings tried against the preview scene's (richmat_addon/blender/preview_scene.py), each alone:
+# scene properties by dotted path. Screen-space rays reach the diffuse only up to trace_max_roughness.
+SETTINGS = {
+    "clamp_surface_indirect 0 (no clamp; default 10)": {"eevee.clamp_surface_indirect": 0.0},
+    "sun_threshold 10 (Blender's default)": {"world.sun_threshold": 10.0},
+    "use_raytracing (screen space)": {"eevee.use_raytracing": True},
+    "use_raytracing, trace_max_roughness 1": {"eevee.use_raytracing": True,
+                                              "eevee.ray_tracing_options.trace_max_roughness": 1.0},
+    "world probe_resolution 4096 (default 1024)": {"world.probe_resolution": "4096"},
+}
 
 
 def frame(folder: Path, name: str, label: str, number: int = FRAMES) -> np.ndarray:
@@ -68,20 +90,45 @@ def brightness_ratio(eevee: np.ndarray, cycles: np.ndarray) -> float:
 
 def render(all_cases: list[Case], args: argparse.Namespace, folder: Path) -> None:
     """Into ``folder``: seed/, EEVEE and Cycles at ``args.seed``; floor/, Cycles at the next seed; cycles_form/,
-    EEVEE reading the form of the native graph Cycles reads, for the cases where EEVEE has its own."""
+    EEVEE reading the form of the native graph Cycles reads, for the cases where EEVEE has its own; settings/,
+    EEVEE under each of ``SETTINGS``; asset/, the prepared asset and its renders, a folder per seed."""
     eevee = dict(GPU_CONFIGS[0], samples=args.eevee_samples)
     cycles_form = dict(eevee, label=CYCLES_FORM, eevee_form=False)
     for half, configs, seed, frames in (("seed", [eevee, CYCLES], args.seed, FRAMES),
                                         ("floor", [CYCLES], args.seed + 1, 1),
                                         (CYCLES_FORM, [cycles_form], args.seed, 1)):
-        out = folder / half
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "job.json").write_text(json.dumps({
-            "cases": [asdict(c) for c in all_cases], "probe": str(args.probe), "resolution": args.resolution,
+        job(folder / half, all_cases, configs, seed, args.resolution, frames, half != CYCLES_FORM, args)
+    swept = [dict(eevee, label=label_of(name), settings=settings) for name, settings in SETTINGS.items()]
+    job(folder / SWEEP, [swept_case(all_cases)], swept, args.seed, args.resolution, 1, True, args)
+    print(f"asset: the farm prepares {args.asset} ...", flush=True)
+    prepared = folder / ASSET / "prepared"
+    prepared.mkdir(parents=True, exist_ok=True)
+    farm_prepare(SHARED_ASSETS / "models" / f"{args.asset}.glb", prepared, args.texture_size)
+    for seed, configs in ((args.seed, [eevee, CYCLES]), (args.seed + 1, [CYCLES])):
+        job(folder / ASSET / str(seed), [], configs, seed, args.asset_resolution, 1, False, args, asset=prepared)
+
+
+def label_of(setting: str) -> str:
+    """A file-name label for one of ``SETTINGS``."""
+    return "eevee_" + "".join(ch if ch.isalnum() else "_" for ch in setting.split(" (")[0])
+
+
+def swept_case(all_cases: list[Case]) -> Case:
+    """The settings sweep's richmat case: the first whole material drawn of Type 0."""
+    return next(c for c in all_cases if c.node == "surface" and c.name.startswith("type0"))
+
+
+def job(out: Path, job_cases: list[Case], configs: list[dict], seed: int, resolution: int, frames: int,
+        control: bool, args: argparse.Namespace, asset: Path | None = None) -> None:
+    """One child rendering ``configs`` into ``out``: ``job_cases`` (and the Principled ball where
+    ``control``) on the preview ball, or the prepared ``asset``."""
+    out.mkdir(parents=True, exist_ok=True)
+    spec = {"cases": [asdict(c) for c in job_cases], "probe": str(args.probe), "resolution": resolution,
             "samples": args.samples, "seed": seed, "out": str(out), "configs": configs, "frames": frames,
-            "control": half != CYCLES_FORM}))
-        print(f"{half}: {[c['label'] for c in configs]} at seed {seed}, {len(all_cases)} cases ...", flush=True)
-        run_python(["-m", "bench.native_agreement_cycles", str(out / "job.json")], folder)
+            "control": control, **({"asset": str(asset), "name": args.asset} if asset else {})}
+    (out / "job.json").write_text(json.dumps(spec))
+    print(f"{out.name}: {[c['label'] for c in configs]} at seed {seed}, {len(job_cases)} cases ...", flush=True)
+    run_python(["-m", "bench.native_agreement_cycles", str(out / "job.json")], out)
 
 
 def compare(name: str, folder: Path, times: dict) -> tuple[dict, list[tuple[str, np.ndarray]]]:
@@ -102,6 +149,54 @@ def compare(name: str, folder: Path, times: dict) -> tuple[dict, list[tuple[str,
                               "brightness_ratio": brightness_ratio(other_form, cycles_rgba)}
         images.append((f"EEVEE, Cycles' form: {row['cycles_form']['flip']:.3f}", agx(other_form[..., :3])))
     return row, images
+
+
+def compare_asset(folder: Path, args: argparse.Namespace) -> tuple[dict, list[tuple[str, np.ndarray]]]:
+    """The textured asset's summary row (its mean FLIP over the pixels both engines cover) and sheet row."""
+    seed, other = folder / ASSET / str(args.seed), folder / ASSET / str(args.seed + 1)
+    eevee_rgba, cycles_rgba = frame(seed, args.asset, "eevee", 1), frame(seed, args.asset, "native", 1)
+    eevee, cycles = agx(eevee_rgba[..., :3]), agx(cycles_rgba[..., :3])
+    on_asset = (eevee_rgba[..., 3] > 0.5) & (cycles_rgba[..., 3] > 0.5)
+    error = np.where(on_asset, flip_map(cycles, eevee)[0], 0.0)
+    floor_map = np.where(on_asset, flip_map(cycles, agx(frame(other, args.asset, "native", 1)[..., :3]))[0], 0.0)
+    flip, floor, ratio = float(error[on_asset].mean()), float(floor_map[on_asset].mean()), \
+        brightness_ratio(eevee_rgba, cycles_rgba)
+    times = read_json(seed / "times.json")[args.asset]["eevee"]
+    prepared = read_json(folder / ASSET / "prepared" / "asset.json")
+    row = {"cases": 1, "mean_flip": flip, "worst_flip": flip, "mean_cycles_floor": floor,
+           "brightness_ratio": [ratio, ratio], "passed": flip <= TARGET_MEAN, "pixels": int(on_asset.sum()),
+           "resolution": args.asset_resolution, "texture_size": args.texture_size,
+           "material_types": {m["name"]: m["type"] for m in prepared["materials"]},
+           "eevee_first_wall_s": times["first"][0], "eevee_frame_wall_s": times["frame"][0]}
+    window = around(on_asset)
+    images = [("EEVEE", eevee[window]), ("Cycles", cycles[window]), (f"FLIP {flip:.3f} on the asset", error[window]),
+              (f"Cycles seed+1: {floor:.3f}", floor_map[window])]
+    return row, images
+
+
+def around(mask: np.ndarray, margin: int = 4) -> tuple[slice, slice]:
+    """The square window about ``mask``'s pixels, ``margin`` pixels wider: the asset fills its tile of the sheet."""
+    ys, xs = np.nonzero(mask)
+    half = max(np.ptp(ys), np.ptp(xs)) // 2 + margin
+    y, x = (ys.min() + ys.max()) // 2, (xs.min() + xs.max()) // 2
+    return slice(max(y - half, 0), y + half + 1), slice(max(x - half, 0), x + half + 1)
+
+
+def sweep(folder: Path, case: str) -> list[dict]:
+    """Each of ``SETTINGS`` after the preview scene's own, on ``case`` and the Principled ball: FLIP against
+    Cycles and the brightness ratio."""
+    out = []
+    for name, settings in {PREVIEW: None, **SETTINGS}.items():
+        row: dict = {"setting": name, "settings": settings or {}, "flip": {}, "brightness_ratio": {}}
+        for ball in (CONTROL, case):
+            cycles = frame(folder / "seed", ball, "native")
+            eevee = frame(folder / "seed", ball, "eevee") if settings is None else \
+                frame(folder / SWEEP, ball, label_of(name), 1)
+            row["flip"][ball] = flip_map(agx(cycles[..., :3]), agx(eevee[..., :3]))[1]
+            row["brightness_ratio"][ball] = brightness_ratio(eevee, cycles)
+        print(f"{name:58s} " + "  ".join(f"{k} {v:.4f}" for k, v in row["flip"].items()), flush=True)
+        out.append(row)
+    return out
 
 
 def summary(rows: list[dict]) -> dict:
@@ -138,10 +233,11 @@ def own_form(rows: list[dict]) -> dict:
 
 
 def chart(report: dict, path: Path) -> None:
-    """Mean and worst FLIP per group beside the Cycles noise floor; EEVEE's brightness over Cycles' per case."""
+    """Mean and worst FLIP per group beside the Cycles noise floor; EEVEE's brightness over Cycles' per case;
+    the settings sweep's FLIP per setting."""
     plt = pyplot()
     groups = [g for g in report["summary"] if g != "all"]
-    fig, (a, b) = plt.subplots(1, 2, figsize=(14, 5))
+    fig, (a, b, c) = plt.subplots(1, 3, figsize=(21, 5.5), gridspec_kw={"width_ratios": [3, 2, 2]})
     x = np.arange(len(groups))
     for k, (key, label, colour) in enumerate((("mean_flip", "mean FLIP", "tab:blue"),
                                               ("worst_flip", "worst FLIP", "tab:red"),
@@ -162,6 +258,18 @@ def chart(report: dict, path: Path) -> None:
     b.set_yticks(y, [REFERENCE if r["group"] == REFERENCE else r["name"] for r in rows], fontsize=7)
     b.invert_yaxis()
     b.set_xlabel("EEVEE / Cycles mean luminance on the ball (orange: a lobe alone)")
+    sweep_rows = report["settings_sweep"]
+    balls = list(sweep_rows[0]["flip"])
+    y = np.arange(len(sweep_rows))
+    for k, ball in enumerate(balls):
+        c.barh(y + (k - 0.5) * 0.4, [r["flip"][ball] for r in sweep_rows], 0.4,
+               label=REFERENCE if ball == CONTROL else ball)
+    c.set_yticks(y, [r["setting"] for r in sweep_rows], fontsize=7)
+    c.invert_yaxis()
+    c.set_xlabel("EEVEE vs Cycles, FLIP as on the left")
+    c.set_title("EEVEE's settings, one changed at a time", fontsize=9)
+    c.set_xlim(0, 1.4 * max(f for r in sweep_rows for f in r["flip"].values()))  # room for the legend
+    c.legend(fontsize=8, loc="lower right")
     save_chart(fig, path)
 
 
@@ -169,12 +277,16 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--per-type", type=int, default=2, help="drawn materials per type (default: 2)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the drawn materials and of Cycles (default: 0)")
-    parser.add_argument("--asset", default="WaterBottle", help="the sample asset uplifted for the real cases")
+    parser.add_argument("--asset", default="WaterBottle", help="the sample asset: uplifted vectors of it on the ball, and its textured mesh (default: WaterBottle)")
     parser.add_argument("--per-asset", type=int, default=2, help="cases drawn from the asset (default: 2)")
     parser.add_argument("--resolution", type=int, default=96, help="preview ball size in pixels (default: 96)")
     parser.add_argument("--samples", type=int, default=256, help="Cycles samples per frame (default: 256)")
     parser.add_argument("--eevee-samples", type=int, default=16,
                         help="EEVEE samples per frame (default: 16; about 0.6 s each at 96 px on llvmpipe)")
+    parser.add_argument("--asset-resolution", type=int, default=128,
+                        help="size of the textured asset's renders in pixels (default: 128)")
+    parser.add_argument("--texture-size", type=int, default=128,
+                        help="the farm's --max-texture for the asset's maps (default: 128)")
     parser.add_argument("--probe", type=Path, default=DEFAULT_PROBE, help="equirectangular HDR probe")
     parser.add_argument("--renders", type=Path, default=None, metavar="DIR",
                         help="keep the renders in DIR, or compare those already there (the report's \"rendered\" "
@@ -187,7 +299,7 @@ def main() -> None:
     rows, sheet = [], []
     with tempfile.TemporaryDirectory(prefix="richmat_native_eevee_") as fresh:
         folder = args.renders or Path(fresh)
-        rendered = not (folder / CYCLES_FORM / "times.json").exists()
+        rendered = not (folder / ASSET / str(args.seed + 1) / "times.json").exists()
         if rendered:
             render(all_cases, args, folder)
         times = read_json(folder / "seed" / "times.json")
@@ -202,13 +314,20 @@ def main() -> None:
             print(f"{row['name']:28s} FLIP {row['flip']:.4f} (Cycles floor {row['cycles_floor']:.4f}, EEVEE repeat "
                   f"{row['eevee_repeat']:.4f}), brightness {row['brightness_ratio']:.3f}"
                   + (f"; Cycles' form {row['cycles_form']['flip']:.4f}" if "cycles_form" in row else ""), flush=True)
-    overall = summary(rows)
+        asset_row, images = compare_asset(folder, args)
+        sheet.append((f"{args.asset}, textured mesh\nFLIP {asset_row['mean_flip']:.3f} "
+                      f"(floor {asset_row['mean_cycles_floor']:.3f})\n"
+                      f"EEVEE/Cycles {asset_row['brightness_ratio'][0]:.2f}", images))
+        settings = sweep(folder, swept_case(all_cases).name)
+    overall = {**summary(rows), f"{args.asset} mesh": asset_row}
     types = [g for g in overall if g.startswith("type")]
     report = {"seed": args.seed, "per_type": args.per_type, "asset": args.asset, "per_asset": args.per_asset,
+              "asset_resolution": args.asset_resolution, "texture_size": args.texture_size,
               "probe": args.probe.name, "resolution": args.resolution, "samples": args.samples,
               "eevee_samples": args.eevee_samples, "eevee_renderer": renderer, "reference": "Cycles CPU, native graph",
               "flip_convention": FLIP_CONVENTION, "target_mean": TARGET_MEAN, "target_worst": TARGET_WORST,
               "types_passed": [g for g in types if overall[g]["passed"]], "eevee_form": own_form(rows),
+              "settings_sweep": settings,
               "time_columns": "seconds[config][first|frame] = [wall, cpu]",
               "rendered": rendered, "wall_seconds": time.perf_counter() - start, "summary": overall, "cases": rows}
     write_report(args.out, report)

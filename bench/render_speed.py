@@ -74,10 +74,22 @@ def _run(cmd: list[str], log: Path) -> float:
     return out.seconds
 
 
+def farm_prepare(asset: Path, folder: Path, max_texture: int) -> None:
+    """The farm's prepare stage on ``asset`` into ``folder``: the scene normalised, every material uplifted
+    at the farm's type for the asset (seed 0) into ``folder``/materials, ``scene.blend`` and ``asset.json``."""
+    from batch.assets import asset_id
+    from batch.pipeline import default_commands
+    from richmat_addon.core.enhancement_plan import asset_type
+
+    aid = asset_id(asset.name)
+    _run(default_commands(None, None).blender_job(
+        ["prepare", "--asset", str(asset), "--work", str(folder), "--asset-id", aid, "--type",
+         str(asset_type(aid, 0)), "--seed", "0", "--max-texture", str(max_texture)]), folder / "logs" / "prepare")
+
+
 def prepare(asset: Path, work: Path, args: argparse.Namespace) -> Path:
     """Prepare and fit one asset once (not timed): the input of every render below."""
     from batch.assets import asset_id
-    from richmat_addon.core.enhancement_plan import asset_type
     from batch.options import DEFAULT_CLUSTER_STEP
     from batch.pipeline import default_commands
 
@@ -87,10 +99,7 @@ def prepare(asset: Path, work: Path, args: argparse.Namespace) -> Path:
         return folder
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True)
-    aid = asset_id(asset.name)
-    _run(commands.blender_job(["prepare", "--asset", str(asset), "--work", str(folder), "--asset-id", aid,
-                               "--type", str(asset_type(aid, 0)), "--seed", "0",
-                               "--max-texture", str(args.max_texture)]), folder / "logs" / "prepare")
+    farm_prepare(asset, folder, args.max_texture)
     _run(commands.fit_job(["--work", str(folder), "--decoder", str(args.decoder), "--steps",
                            str(args.fit_steps), "--cluster-step", repr(DEFAULT_CLUSTER_STEP),
                            "--threads", str(args.threads)]), folder / "logs" / "fit")

@@ -44,6 +44,8 @@ FOLLOW, ACCURACY = R + "generate_follow.json", R + "generate_follow_accuracy.jso
 FOLLOWED, TODAY_FOLLOWED = "strength/words, generated", "strength/today, generated"
 BACKENDS = "docs/backends.md"
 EEVEE_REPORT = R + "native_eevee.json"
+ASSET_ROW = "WaterBottle mesh"  # native_eevee.json's summary row of the asset's textured mesh
+SWEPT = "type0_diel_0"  # native_eevee.json's Type 0 draw of the settings sweep
 NUMBER = re.compile(r"\{([^{}]*)\}")  # a quoted number in braces
 
 
@@ -71,6 +73,13 @@ def candidate_keys(decoder: str, worst: tuple[str, ...] = ()) -> list[str]:
         key = f"sets/{case_set}/summary/probe_{group}/{decoder}"
         out += [f"{key}/mean", f"{key}/worst"] if group == "metals" and case_set in worst else [f"{key}/mean"]
     return out
+
+
+def sweep_keys(setting: int) -> list[str]:
+    """native_eevee.json's keys of one row of backends.md's EEVEE settings table: FLIP and brightness
+    ratio on the Principled ball, then on the swept Type 0 draw."""
+    key = f"settings_sweep/{setting}/"
+    return [key + f"{k}/{ball}" for ball in ("control", SWEPT) for k in ("flip", "brightness_ratio")]
 
 
 def eevee_keys(group: str, ranged: bool) -> list[str]:
@@ -548,9 +557,31 @@ ROWS: tuple[DocNumber, ...] = (
     DocNumber(BACKENDS, "and {7} of them come closer", EEVEE_REPORT, "eevee_form/closer"),
     DocNumber(BACKENDS, "the two vectors at {0.140} and 0.269", EEVEE_REPORT, "cases/21/flip"),
     DocNumber(BACKENDS, "the two vectors at 0.140 and {0.269}", EEVEE_REPORT, "cases/20/flip"),
-    DocNumber(BACKENDS, "(commit 55b4e49, {8.2} min", EEVEE_REPORT, "wall_seconds", MIN),
+    DocNumber(BACKENDS, "(commit 1de8354, {12.6} min", EEVEE_REPORT, "wall_seconds", MIN),
     DocNumber(BACKENDS, "costs about 19 s on 2 cores (Blender's default cube at 64 px, by hand; 3 s the second", None),
-    DocNumber(BACKENDS, "0.37 of Cycles' brightness on this probe (measured by hand)", None),
+    # docs/backends.md 3.7: the asset whole, and EEVEE's settings one at a time
+    DocNumber(BACKENDS, "(`batch/blender_job.py prepare`, maps at {128} px)", EEVEE_REPORT, "texture_size"),
+    DocNumber(BACKENDS, "uplifts WaterBottle (Type {2})", EEVEE_REPORT, f"summary/{ASSET_ROW}/material_types/BottleMat"),
+    DocNumber(BACKENDS, "farm's native materials, at {128} px from the farm's first camera", EEVEE_REPORT,
+              "asset_resolution"),
+    DocNumber(BACKENDS, "Over the asset's {1372} pixels", EEVEE_REPORT, f"summary/{ASSET_ROW}/pixels"),
+    DocNumber(BACKENDS, "EEVEE is at mean FLIP {0.452} from Cycles", EEVEE_REPORT, f"summary/{ASSET_ROW}/mean_flip"),
+    DocNumber(BACKENDS, "noise (the next seed) is {0.034}", EEVEE_REPORT, f"summary/{ASSET_ROW}/mean_cycles_floor"),
+    DocNumber(BACKENDS, "and {0.70} of Cycles' brightness (the sheet's last row)", EEVEE_REPORT,
+              f"summary/{ASSET_ROW}/brightness_ratio/0"),
+    DocNumber(BACKENDS, "the bottle's two vectors above ({0.77} of Cycles' brightness)", EEVEE_REPORT,
+              "summary/WaterBottle/brightness_ratio/0"),
+    *(number for i, row in enumerate((
+        "| the preview scene's (`sun_threshold` 0, Blender's defaults otherwise) | {0.184}, {0.97} | {0.216}, {0.96} |",
+        "| `clamp_surface_indirect` 0 (no clamp; default 10) | {0.184}, {0.98} | {0.213}, {0.96} |",
+        "| `sun_threshold` 10 (Blender's default) | {0.244}, {0.85} | {0.299}, {0.75} |",
+        "| screen-space ray tracing | {0.185}, {0.97} | {0.216}, {0.96} |",
+        "| ray tracing, `trace_max_roughness` 1 | {0.268}, {0.82} | {0.310}, {0.74} |",
+        "| world `probe_resolution` 4096 (default 1024) | {0.186}, {0.97} | {0.217}, {0.95} |"))
+      for number in table_row(BACKENDS, row, EEVEE_REPORT, sweep_keys(i))),
+    DocNumber(BACKENDS, "moves the Type 0 draw from {0.216} to 0.213", EEVEE_REPORT, f"settings_sweep/0/flip/{SWEPT}"),
+    DocNumber(BACKENDS, "moves the Type 0 draw from 0.216 to {0.213}", EEVEE_REPORT, f"settings_sweep/1/flip/{SWEPT}"),
+    DocNumber(BACKENDS, "less than Cycles' noise on it ({0.011})", EEVEE_REPORT, "cases/0/cycles_floor"),
     # docs/backends.md 4.1: the MaterialX export through MaterialX's own OSL generator, in Cycles
     DocNumber("docs/backends.md", "| genosl as generated | {0.0332} | 0.1290", R + "mtlx_osl_agreement.json", "summary/all/mean_flip"),
     DocNumber("docs/backends.md", "| genosl as generated | 0.0332 | {0.1290} (type2_metal_1)", R + "mtlx_osl_agreement.json",
@@ -609,6 +640,25 @@ ROWS: tuple[DocNumber, ...] = (
     DocNumber("docs/batch.md", "dataset is {209} CPU-hours after", R + "farm_cost.json", "cost_model/after/paper_dataset_cpu_hours"),
     DocNumber("docs/batch.md", "after: {0.6} nodes of 16 cores", R + "farm_cost.json",
               "cost_model/after/nodes_to_match_paper_22_hours"),
+    DocNumber("docs/addon.md", "the whole Fit operator on the photo-scanned table's 1k material ({454 401} distinct",
+              R + "addon_fit_1k.json", "assets/wooden_table_02_1k/records/3/details/wooden_table_02 (richmat)/merged_vectors"),
+    DocNumber("docs/addon.md", "after merging) takes {19.1} s, its error readout", R + "addon_fit_1k.json",
+              "assets/wooden_table_02_1k/records/3/seconds"),
+    DocNumber("docs/addon.md", "its error readout {1.7} s of it", R + "addon_fit_1k.json",
+              "assets/wooden_table_02_1k/records/3/details/wooden_table_02 (richmat)/timings_s/error"),
+    DocNumber("docs/addon.md", "WaterBottle's {17.4} s", R + "addon_fit_1k.json", "assets/WaterBottle/records/3/seconds"),
+    DocNumber("docs/addon.md", "mean FLIP {0.100} on the table", R + "addon_fit_1k.json",
+              "assets/wooden_table_02_1k/preview_flip_vs_bake"),
+    DocNumber("docs/addon.md", "and {0.135} on the bottle", R + "addon_fit_1k.json", "assets/WaterBottle/preview_flip_vs_bake"),
+    DocNumber("docs/addon.md", "against {0.096} and 0.134 when every", R + "addon_fit_1k_per_vector.json",
+              "assets/wooden_table_02_1k/preview_flip_vs_bake"),
+    DocNumber("docs/addon.md", "against 0.096 and {0.134} when every", R + "addon_fit_1k_per_vector.json",
+              "assets/WaterBottle/preview_flip_vs_bake"),
+    DocNumber("docs/addon.md", "(noise floors {0.023} and 0.024)", R + "addon_fit_1k.json",
+              "assets/wooden_table_02_1k/bake_noise_floor"),
+    DocNumber("docs/addon.md", "(noise floors 0.023 and {0.024})", R + "addon_fit_1k.json", "assets/WaterBottle/bake_noise_floor"),
+    DocNumber("docs/addon.md", "took {3846} s on the table", R + "addon_fit_1k_per_vector.json",
+              "assets/wooden_table_02_1k/records/3/seconds"),
     DocNumber("docs/batch.md", "to {0.0084} at 12 spp", R + "render_speed.json", "sweep/8/mean_flip"),
     DocNumber("docs/batch.md", "**{12} spp, threshold 0.01**", R + "render_speed.json", "default/samples"),
     DocNumber("docs/batch.md", "**{1544} assets/hour**", R + "render_speed.json", "throughput/ours_assets_per_hour"),
