@@ -659,6 +659,8 @@ ROWS: tuple[DocNumber, ...] = (
     DocNumber("docs/addon.md", "(noise floors 0.023 and {0.024})", R + "addon_fit_1k.json", "assets/WaterBottle/bake_noise_floor"),
     DocNumber("docs/addon.md", "took {3846} s on the table", R + "addon_fit_1k_per_vector.json",
               "assets/wooden_table_02_1k/records/3/seconds"),
+    DocNumber("docs/addon.md", "the whole Fit takes {94.5} s for", R + "addon_fit_4k.json",
+              "assets/wooden_table_02_1k/records/3/seconds"),
     DocNumber("docs/batch.md", "to {0.0084} at 12 spp", R + "render_speed.json", "sweep/8/mean_flip"),
     DocNumber("docs/batch.md", "**{12} spp, threshold 0.01**", R + "render_speed.json", "default/samples"),
     DocNumber("docs/batch.md", "**{1544} assets/hour**", R + "render_speed.json", "throughput/ours_assets_per_hour"),
