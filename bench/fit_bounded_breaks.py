@@ -24,6 +24,7 @@ look is wrong everywhere it shows). One thread, 300 steps.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -79,7 +80,7 @@ def measure(model: NeuralModel, count: int, budgets: list[int], seed: int) -> di
     return {"looks": count, "probe": len(probe), "designs": rows}
 
 
-def chart(report: dict, path) -> None:  # type: ignore[no-untyped-def]
+def chart(report: dict, path: Path) -> None:
     """Fit error (mean and 90th percentile) against the looks in the material, one line per design."""
     plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(16, 5))
@@ -89,9 +90,10 @@ def chart(report: dict, path) -> None:  # type: ignore[no-untyped-def]
         style = dict(color="tab:red", marker="*", ms=10, ls="--") if name == "per vector" else dict(marker="o")
         if name == f"budget {report['shipped_budget']}":
             style.update(lw=2.5)
-        for ax, key in zip(axes, ("mean_error", "p90_error", "fit_cpu")):
-            ax.plot(looks, [r["designs"][name][key] + r["designs"][name].get("choose_cpu", 0.0) * (key == "fit_cpu")
-                            for r in rows], label=name + (" (shipped)" if "lw" in style else ""), **style)
+        designs = [r["designs"][name] for r in rows]
+        cost = [d["fit_cpu"] + d.get("choose_cpu", 0.0) for d in designs]
+        for ax, values in zip(axes, ([d["mean_error"] for d in designs], [d["p90_error"] for d in designs], cost)):
+            ax.plot(looks, values, label=name + (" (shipped)" if "lw" in style else ""), **style)
     for ax, label in zip(axes, ("fit error, mean over looks", "fit error, 90th percentile",
                                 "CPU s, one thread: choosing + fitting (per vector extrapolated)")):
         ax.set_xscale("log", base=2)

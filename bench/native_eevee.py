@@ -186,10 +186,10 @@ def sweep(folder: Path, case: str) -> list[dict]:
     """Each of ``SETTINGS`` after the preview scene's own, on ``case`` and the Principled ball: FLIP against
     Cycles and the brightness ratio."""
     out = []
+    cycles_of = {ball: frame(folder / "seed", ball, "native") for ball in (CONTROL, case)}  # read once
     for name, settings in {PREVIEW: None, **SETTINGS}.items():
         row: dict = {"setting": name, "settings": settings or {}, "flip": {}, "brightness_ratio": {}}
-        for ball in (CONTROL, case):
-            cycles = frame(folder / "seed", ball, "native")
+        for ball, cycles in cycles_of.items():
             eevee = frame(folder / "seed", ball, "eevee") if settings is None else \
                 frame(folder / SWEEP, ball, label_of(name), 1)
             row["flip"][ball] = flip_map(agx(cycles[..., :3]), agx(eevee[..., :3]))[1]
