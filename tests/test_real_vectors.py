@@ -11,7 +11,7 @@ import torch
 
 from richmat_addon.core.enhancement_types import TYPES
 from richmat_addon.core.schema import CHANNEL_SLICES
-from support.paths import REPO, SHARED_ASSETS, shared_assets_or_skip
+from support.paths import REPO, shared_assets_or_skip
 from torch_models.neural import real_vectors
 from torch_models.neural.kinds import load_config
 from torch_models.neural.data import make_batch
