@@ -235,12 +235,10 @@ def prompt_views(inp, prompts: list[str], seed: int, texture_size: int, view_siz
     rules' uplift of the object's material to the prompt's type, encoded) and the view of the generated
     material, both display-referred (AgX) from the same camera with the same samples."""
     import numpy as np
-    import torch
 
     from .generator import generate as gen
     from .render.tonemap import agx
 
-    torch.set_num_threads(1)  # small tensors: a second thread costs more in synchronisation than it saves
     model, cfg = gen.load_generator()
     rows = []
     for prompt in prompts:
