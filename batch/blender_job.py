@@ -144,7 +144,7 @@ def render(args: argparse.Namespace) -> None:
 
 def render_intrinsics(scene: bpy.types.Scene, samples: int, work: Path, frame_step: int = 1) -> None:
     """The intrinsics pass over ``scene``'s orbit (its objects already wear their SVM materials) into
-    ``work/passes``; ``frame_step`` > 1 renders every so many frames (``bench/intrinsics_samples.py``)."""
+    ``work/passes``; ``frame_step`` > 1 renders every so many frames (``bench/farm/intrinsics_samples.py``)."""
     intrinsics = bl_render.intrinsics_scene(scene, samples)
     intrinsics.frame_step = frame_step
     bl_render.add_aovs(intrinsics.view_layers[0])

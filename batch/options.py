@@ -26,10 +26,10 @@ DEFAULT_MAX_TRIANGLES = 5_000_000
 DEFAULT_CLUSTER_STEP = 1 / 256
 # How OIDN treats the albedo and normal passes it denoises the beauty with: "accurate" denoises them
 # first, which costs about half of a 512 px, 16 spp beauty frame on one thread; "fast" takes them as
-# rendered (bench/beauty_denoise.py measures both).
+# rendered (bench/farm/beauty_denoise.py measures both).
 DENOISE_PREFILTERS = ("fast", "accurate")
 DEFAULT_DENOISE_PREFILTER = "fast"
-# OIDN's network: "high" is Cycles' default; "balanced" and "fast" are smaller networks (bench/beauty_denoise.py
+# OIDN's network: "high" is Cycles' default; "balanced" and "fast" are smaller networks (bench/farm/beauty_denoise.py
 # measures them against a high-sample reference).
 DENOISE_QUALITIES = ("high", "balanced", "fast")
 DEFAULT_DENOISE_QUALITY = "high"
@@ -38,7 +38,7 @@ DEVICES = ("CPU", "CUDA", "OPTIX", "HIP", "METAL", "ONEAPI")
 OSL_DEVICES = ("CPU", "OPTIX")
 # The beauty pass's material: the native node graph renders on every device and, on the CPU, the farm's
 # textured materials in about two thirds of OSL's time (the OSL shader reads its maps through OpenImageIO's
-# texture cache); bench/farm_cost.py measures both against an OSL reference.
+# texture cache); bench/farm/farm_cost.py measures both against an OSL reference.
 GRAPHS = ("native", "osl")
 DEFAULT_GRAPH = "native"
 # Bumped when the per-asset output format or pipeline changes meaning.
@@ -62,16 +62,16 @@ def build_parser() -> argparse.ArgumentParser:
     add("--frames", type=int, default=16, help="frames of the orbit")
     add("--resolution", type=int, default=512, help="image width and height in pixels")
     add("--samples", type=int, default=12, help="Cycles samples per pixel of the beauty pass (denoised; "
-                                                "default chosen by bench/render_speed.py, docs/batch.md)")
+                                                "default chosen by bench/farm/render_speed.py, docs/batch.md)")
     add("--adaptive-threshold", type=float, default=0.01, help="Cycles adaptive sampling noise threshold "
                                                               "(default chosen with --samples)")
     add("--denoise-prefilter", choices=DENOISE_PREFILTERS, default=DEFAULT_DENOISE_PREFILTER,
         help="OIDN's treatment of the albedo and normal it denoises with: 'accurate' denoises them first (about "
              "half of a 512 px beauty frame on one thread), 'fast' takes them as rendered (default chosen by "
-             "bench/beauty_denoise.py, docs/batch.md)")
+             "bench/farm/beauty_denoise.py, docs/batch.md)")
     add("--denoise-quality", choices=DENOISE_QUALITIES, default=DEFAULT_DENOISE_QUALITY,
         help="OIDN's network for the beauty pass: 'high' (Cycles' default), 'balanced' or 'fast' (smaller, "
-             "quicker; default chosen by bench/beauty_denoise.py, docs/batch.md)")
+             "quicker; default chosen by bench/farm/beauty_denoise.py, docs/batch.md)")
     add("--device", choices=DEVICES, default="CPU",
         help="Cycles device of every render pass; a device this machine does not have fails the run at once, "
              "with the reason in the ledger (never a silent CPU fallback)")
@@ -86,10 +86,10 @@ def build_parser() -> argparse.ArgumentParser:
     add("--fit-steps", type=int, default=300, help="latent optimisation steps per material")
     add("--cluster-step", type=float, default=DEFAULT_CLUSTER_STEP,
         help="texel vectors that agree to this step per normalised parameter are fitted as one, sharing the "
-             "fit's samples (bench/farm_cost.py sweeps it, docs/batch.md)")
+             "fit's samples (bench/farm/farm_cost.py sweeps it, docs/batch.md)")
     add("--fit-budget", type=int, default=FIT_BUDGET,
         help="vectors fitted per material at most: past it, representatives chosen in the encoder's latent "
-             "space, so the fit's cost does not grow with the texture (bench/fit_bounded.py); 0: no bound")
+             "space, so the fit's cost does not grow with the texture (bench/neural/fit_bounded.py); 0: no bound")
     add("--max-texture", type=int, default=512, help="larger textures are downscaled to this size (noted)")
     add("--max-triangles", type=int, default=DEFAULT_MAX_TRIANGLES,
         help="assets whose meshes have more triangles are refused with the count (a glTF before it is imported)")

@@ -4,7 +4,7 @@ A report is written with ``write_report`` (``support.reports``: the provenance t
 number quoted in the docs to the code and weights that produced it). A bench whose only output
 is a figure writes the same record (``provenance``) into the PNG's text.
 
-Benches run from the repository root as modules (``python -m bench.fit_flip``);
+Benches run from the repository root as modules (``python -m bench.neural.fit_flip``);
 a child process they start (a Cycles render with the pip bpy module) goes through
 ``run_python``, which makes the repository importable there too.
 """

@@ -1,6 +1,6 @@
 """MaterialX's own OSL generator (genosl) applied to the add-on's MaterialX export, made compilable by Cycles.
 
-Used by bench/mtlx_osl_agreement.py and tests/test_mtlx.py; support/osl_script.py renders the result.
+Used by bench/material/mtlx_osl_agreement.py and tests/test_mtlx.py; support/osl_script.py renders the result.
 
 An outside check of the export: the document goes through the reference code
 generator of the ``materialx`` wheel, not through anything of ours, and the OSL it

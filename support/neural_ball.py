@@ -1,6 +1,6 @@
 """The add-on's neural preview shader on the preview scene's ball in Cycles (the Blender side).
 
-bench/closure_preview.py, bench/preview_agreement.py and tests/test_addon_preview.py
+bench/addon/closure_preview.py, bench/addon/preview_agreement.py and tests/test_addon_preview.py
 render this against the torch renderer: the OSL a decoder's weights generate, in one
 Script node, on the ball under the studio probe. They build it here, in the Blender child.
 """

@@ -1,4 +1,5 @@
-"""Blender side of a sheen measurement (bench/calibrate_sheen.py, tests/test_closure_sheen.py): Cycles' sheen closure.
+"""Blender side of a sheen measurement (bench/material/calibrate_sheen.py, tests/test_closure_sheen.py):
+Cycles' sheen closure.
 
 Spheres of the sheen lobe alone (one per roughness), plus one white Lambertian
 sphere, seen by an orthographic camera (every pixel has the same view direction

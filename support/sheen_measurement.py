@@ -1,5 +1,5 @@
 """Reading a Cycles sheen measurement (``support/sheen_cycles.py``'s renders) back as samples of f cos, and
-our sheen lobe with its LTC table as a free parameter: what bench/calibrate_sheen.py fits the shipped table
+our sheen lobe with its LTC table as a free parameter: what bench/material/calibrate_sheen.py fits the shipped table
 with and tests/test_closure_sheen.py checks it against."""
 from __future__ import annotations
 

@@ -198,8 +198,9 @@ ROWS: tuple[DocNumber, ...] = (
     DocNumber(GENERATOR, "from guidance 1 to 2 (42.6 to {37.6} dB)", R + "generate_guidance.json",
               "per_type_psnr/4/2"),
 
-    # issue 50: following the words (bench/generate_follow.py)
-    DocNumber(GENERATOR, "`python -m bench.generate_follow`, {18} minutes on one thread", FOLLOW, "wall_seconds", MIN),
+    # issue 50: following the words (bench/generator/generate_follow.py)
+    DocNumber(GENERATOR, "`python -m bench.generator.generate_follow`, {18} minutes on one thread", FOLLOW,
+              "wall_seconds", MIN),
     *table_row(GENERATOR, "| named colour, CIEDE2000 of the mean base colour (21 prompts x 4 meshes), median / worst "
                "| {33.9} / {88.0} | **{0.0} / {0.0}** | 10 |", FOLLOW,
                ["base/today/median_de", "base/today/worst_de", "base/words/median_de", "base/words/worst_de"]),

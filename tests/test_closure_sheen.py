@@ -67,7 +67,7 @@ def test_the_fit_follows_the_torch_table() -> None:
 
 
 # ---- against Cycles' sheen closure, measured in a fresh Cycles render --------------------------------
-# bench/calibrate_sheen.py fitted the shipped table to such measurements; this repeats a small one (other
+# bench/material/calibrate_sheen.py fitted the shipped table to such measurements; this repeats a small one (other
 # sun directions, four roughnesses), so a change to the lobe, the table or the frame convention fails here.
 def _measure(blender_run, folder: Path, roughness: list[float], suns: np.ndarray) -> dict:
     job = folder / "job.json"

@@ -278,16 +278,17 @@ def uncited(names: dict[str, tuple[str, ...]], text: str) -> list[str]:
 
 
 def bench_spellings(module: Path) -> tuple[str, ...]:
-    """How the docs name a bench module: its path or its ``python -m`` name, followed by a non-name character."""
-    stem = module.stem
-    return tuple(f"{prefix}{stem}{end}" for prefix in ("bench/", "bench.") for end in (".py", "`", " ", "\n", ")", ","))
+    """How the docs name a bench module (a path from the repository root): its path or its ``python -m``
+    name, followed by a non-name character."""
+    parts = module.with_suffix("").parts
+    return tuple(f"{sep.join(parts)}{end}" for sep in "/." for end in (".py", "`", " ", "\n", ")", ","))
 
 
 def test_every_bench_and_report_is_cited():
     """history.md names retired ones by ``git show``: its mentions do not count."""
     text = "\n".join(doc.read_text() for doc in documents() if doc.name != "history.md")
-    benches = {p.name: bench_spellings(p) for p in sorted(BENCH.glob("*.py"))
-               if p.name not in NOT_BENCHES and not p.name.startswith("test_")}
+    benches = {p.relative_to(BENCH).as_posix(): bench_spellings(p.relative_to(REPO))
+               for p in sorted(BENCH.rglob("*.py")) if p.name not in NOT_BENCHES and not p.name.startswith("test_")}
     reports = {p.name: (p.name,) for p in sorted(REPORTS.iterdir()) if p.is_file()}
     assert len(benches) >= 20 and len(reports) >= 40, (len(benches), len(reports))
     missing = uncited(benches, text) + uncited(reports, text)
@@ -295,7 +296,8 @@ def test_every_bench_and_report_is_cited():
 
 
 def test_an_uncited_bench_is_found():
-    names = {"agreement.py": bench_spellings(Path("bench/agreement.py")),
-             "agreement_cycles.py": bench_spellings(Path("bench/agreement_cycles.py"))}
-    assert uncited(names, "run `python -m bench.agreement --quick`") == ["agreement_cycles.py"]
-    assert uncited(names, "bench/agreement.py and bench.agreement_cycles)") == []
+    names = {"agreement.py": bench_spellings(Path("bench/material/agreement.py")),
+             "agreement_cycles.py": bench_spellings(Path("bench/material/agreement_cycles.py"))}
+    assert uncited(names, "run `python -m bench.material.agreement --quick`") == ["agreement_cycles.py"]
+    assert uncited(names, "bench/material/agreement.py and bench.material.agreement_cycles)") == []
+    assert uncited(names, "bench/agreement.py and bench.agreement_cycles)") == sorted(names)  # not in its group

@@ -20,7 +20,7 @@ from .test_osl import BLENDER_PRELUDE, save_materials
 
 REPO = Path(__file__).resolve().parents[1]
 PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"
-FLIP_LIMIT = 0.05  # per type at 24 px and 16 samples; bench/native_agreement.py measures it properly
+FLIP_LIMIT = 0.05  # per type at 24 px and 16 samples; bench/material/native_agreement.py measures it properly
 
 
 def type_material(type_: int, metal: bool = False) -> EnhancedMaterial:
@@ -180,7 +180,7 @@ def test_the_farm_takes_the_graph_and_hashes_it():
     ("denoise_quality", options.DENOISE_QUALITIES, "high")])
 def test_the_farm_takes_the_denoiser_settings_and_hashes_them(option: str, choices: tuple[str, ...],
                                                                default: str) -> None:
-    """OIDN's prefilter and network default to what bench/beauty_denoise.py chose; every other
+    """OIDN's prefilter and network default to what bench/farm/beauty_denoise.py chose; every other
     choice renders other frames, so it is another settings hash."""
     parser = options.build_parser()
     base = ["--input", "in", "--output", "out"]

@@ -22,7 +22,7 @@ CONFIGS = REPO / "torch_models" / "neural" / "configs"
 def evaluated_assets() -> set[str]:
     """Every real asset a bench evaluates on (its module-level ASSETS) or the generator holds out."""
     names: set[str] = set()
-    for path in (REPO / "bench").glob("*.py"):
+    for path in (REPO / "bench").rglob("*.py"):
         for node in ast.parse(path.read_text()).body:
             if isinstance(node, ast.Assign) and any(getattr(t, "id", "") == "ASSETS" for t in node.targets):
                 names |= set(ast.literal_eval(node.value))

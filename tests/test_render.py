@@ -182,7 +182,7 @@ def test_agx_matches_blender(blender_run, tmp_path: Path) -> None:
 
 
 def test_ball_agrees_with_cycles(blender_run, tmp_path: Path, env: EnvMap) -> None:
-    """A small, low-sample version of bench/agreement.py: one coated material."""
+    """A small, low-sample version of bench/material/agreement.py: one coated material."""
     from support.agreement_cases import cases
 
     case = next(c for c in cases(7, 1, 0) if c.name.startswith("type3"))

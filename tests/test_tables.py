@@ -142,7 +142,7 @@ def test_sheen_table_against_published_cycles_values() -> None:
 
 
 def test_sheen_table_is_the_calibrated_file_read_bilinearly() -> None:
-    """The shipped table (bench/calibrate_sheen.py) is read at nodes exactly, and it stays
+    """The shipped table (bench/material/calibrate_sheen.py) is read at nodes exactly, and it stays
     within the documented distance of Hill's fits where it was measured (mu >= 0.2) and
     sheen is visible (R > 0.01)."""
     t = tables.table("sheen_ltc", torch.device("cpu"), F64)

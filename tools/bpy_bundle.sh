@@ -8,7 +8,7 @@
 #
 # The bundle holds Python 3.11 (standard library without its tests), numpy, bpy without the USD
 # Python modules, the unused add-ons and the AMD kernels, and the X11/GL client libraries bpy links
-# (glvnd's libEGL among them; the NVIDIA driver supplies the vendor side). bench/native_gpu.py says
+# (glvnd's libEGL among them; the NVIDIA driver supplies the vendor side). bench/material/native_gpu.py says
 # what to run with it. A machine given back loses the parts: add and run in back-to-back calls.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)

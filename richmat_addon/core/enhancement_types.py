@@ -69,7 +69,7 @@ class EnhancementType:
     mix: float  # share in the paper's dataset
     # Classifier-free guidance the generator samples this type with by default: per type, the best mean PSNR
     # of 1, 1.5, 2 and 2.5 on its held-out procedural objects with the shipped generator 3b7998e4
-    # (bench/generate_guidance.py, docs/reports/generate_guidance.json). Type 4's captions are met by the
+    # (bench/generator/generate_guidance.py, docs/reports/generate_guidance.json). Type 4's captions are met by the
     # prompted model alone: more guidance overshoots them. Guidance 1 also skips the unconditional pass.
     guidance: float
     metal_remap: int | None = None  # set for a dielectric-only type: the type a metal gets instead

@@ -3,7 +3,7 @@ per-texel map. The number is computed by the torch fit (``torch_models/neural/fi
 and kept by ``neural_folder``; this module is torch- and bpy-free so a stock Blender reads it.
 
 The thresholds come from Table 1's fitted materials beside their ball FLIP
-(bench/fit_error_calibration.py; the numbers in docs/addon.md, "Fit error"); ``POOR``
+(bench/addon/fit_error_calibration.py; the numbers in docs/addon.md, "Fit error"); ``POOR``
 marks the worst eighth of the errors.
 """
 from __future__ import annotations

@@ -22,7 +22,7 @@ shader gets its gates differs:
   replaced by its mean over directions drawn from its own lobe
   (``torch_models/neural/closure_form.py``, rule ``"mean"``): ``gate_samples``
   draws per lobe and shading sample, hashed from the shading position, so
-  Cycles' samples converge to that mean. bench/closure_preview.py measures
+  Cycles' samples converge to that mean. bench/addon/closure_preview.py measures
   what the constant gates cost against the full decoder;
 * view gates (9 inputs: the latent and the view cosine's features, the head's
   own input; ``HybridDecoder(view_gates=True)``): evaluated once per shading

@@ -1,6 +1,6 @@
 """Cycles' microfiber sheen as a table: the LTC's A and B and the albedo R over (roughness, mu).
 
-Measured from Cycles by bench/calibrate_sheen.py and kept here, the lowest floor, because
+Measured from Cycles by bench/material/calibrate_sheen.py and kept here, the lowest floor, because
 both the torch lobes (``torch_models/brdf/tables.py``) and the neural preview's shader
 (``neural_osl_hybrid``, which divides the sheen closure by R) read it.
 """

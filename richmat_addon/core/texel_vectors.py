@@ -24,7 +24,7 @@ QUANT = 1.0 / 256.0
 # Vectors a fit fits at most: past it, representatives (torch_models/neural/representatives.py).
 # The fit's 16 384-sample step then gives each of them 16 samples where a per-vector fit gives 4:
 # fewer, better-fitted representatives err less than more, noisier ones, and choosing them is
-# cheaper (bench/fit_bounded.py charts the choice against 256-16 384 and the per-vector fit).
+# cheaper (bench/neural/fit_bounded.py charts the choice against 256-16 384 and the per-vector fit).
 FIT_BUDGET = 1024
 
 

@@ -22,7 +22,7 @@ Tables:
   the clamped interpolation factor (F(h.wi) - F0) / (1 - F0) of the exact dielectric
   Fresnel; samples mirrored below the surface count as 0 (Cycles' pdf == 0 case).
 - ``sheen_ltc`` [A, B, R][roughness 32][mu 32]: Zeltner sheen LTC coefficients and
-  albedo, measured from Cycles: bench/calibrate_sheen.py starts from Stephen
+  albedo, measured from Cycles: bench/material/calibrate_sheen.py starts from Stephen
   Hill's closed-form fits (as MaterialX ships them) and fits the table to
   Cycles renders of the closure; the result ships as ``richmat_addon/core/data/sheen_ltc.npy``
   (Cycles' own table is a different fit than Hill's, see docs/lobes.md).
@@ -279,7 +279,7 @@ def hill_sheen_fit(mu: Tensor, roughness: Tensor) -> tuple[Tensor, Tensor, Tenso
 
 def hill_sheen_ltc() -> Tensor:
     """[A, B, R][roughness][mu] sampled from the Hill fits at the grid nodes: the
-    starting point of bench/calibrate_sheen.py."""
+    starting point of bench/material/calibrate_sheen.py."""
     grid = torch.arange(SHEEN_SIZE, dtype=_F64) / (SHEEN_SIZE - 1)
     rough, mu = torch.meshgrid(grid, grid, indexing="ij")
     return torch.stack(hill_sheen_fit(mu, rough))
@@ -289,7 +289,7 @@ GGX_E_UPPER_FILE = Path(__file__).with_name("data") / "ggx_e_upper.npy"
 
 
 def calibrated_sheen_ltc() -> Tensor:
-    """[A, B, R][roughness][mu] fitted to Cycles' sheen by bench/calibrate_sheen.py."""
+    """[A, B, R][roughness][mu] fitted to Cycles' sheen by bench/material/calibrate_sheen.py."""
     return torch.from_numpy(sheen_table()).to(_F64)
 
 

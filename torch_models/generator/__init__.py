@@ -1,7 +1,7 @@
 """Text-to-neural-material generator (paper sec. 5.2): a small conditional multi-view diffusion model."""
 from richmat_addon.core import enhancement_types
 
-# Sampling steps, views and samples averaged of a generation, chosen from bench/generate_speed.py
+# Sampling steps, views and samples averaged of a generation, chosen from bench/generator/generate_speed.py
 # (docs/reports/generate_speed.json; the samples from its samples sweep, in docs/history.md).
 # Here, torch-free, so that the CLI's --help reads them without importing torch.
 DEFAULT_STEPS = 18

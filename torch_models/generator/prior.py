@@ -46,7 +46,7 @@ def prior_material(base_color: np.ndarray, roughness_metalness: np.ndarray | Non
                    normals: np.ndarray, positions: np.ndarray, seed: int = PRIOR_SEED,
                    name: str = PRIOR_NAME, fixed: dict[str, float] | None = None) -> EnhancedMaterial:
     """The enhanced material the prior encodes, at the normals' texture size; ``seed`` and ``name``
-    pick other draws (a reference uplift with a material's own draws, bench/generate_prompts.py);
+    pick other draws (a reference uplift with a material's own draws, bench/generator/generate_prompts.py);
     ``fixed`` settings replace their draws (the prompt's strength words, ``prompt.Reading.settings``)."""
     pbr = pbr_inputs(base_color, roughness_metalness, normals.shape[:2], name)
     resolved, _ = resolve_type(pbr, type_, seed)  # a dielectric-only type on a metal: its metal twin

@@ -35,7 +35,7 @@ class CorpusConfig:
     supersample: int = 1  # anti-aliasing of the rasterised views (2: 4 samples per pixel)
     seed: int = 0
     held_out: list[str] = field(default_factory=list)  # asset ids never trained on besides the hashed split:
-    # real assets kept for evaluation (bench/generate_eval_real.py)
+    # real assets kept for evaluation (python -m bench.generator.generate_eval --real)
 
     def trains_on(self, asset_id: str) -> bool:
         return not (corpus.is_held_out(asset_id) or asset_id in self.held_out)

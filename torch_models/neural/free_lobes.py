@@ -8,7 +8,7 @@ weights still follow the view angle as a coat's Fresnel needs, and the gates rea
 the result is exactly a set of closures, as a view-gated decoder's are. Fitted with the
 decoder's own loss, it measures how far the lobes themselves reach, which a decoder drawing
 them through shared networks and a 6D latent should not beat (issue 41's reach term, split in
-two by ``bench/decoder_candidates.py``).
+two by ``bench/neural/decoder_candidates.py``).
 """
 from __future__ import annotations
 

@@ -8,7 +8,7 @@ latent: a coarser dedupe, chosen for the appearance error it causes.
 - **Metric.** Distance in the encoder's latent space (``encoder``): the encoder was trained
   so that its latent decodes to the vector's BRDF, so it weighs each parameter by how much it
   moves what the decoder draws, non-linearly (a metal against a dielectric of the same colour
-  is far apart however close their numbers). Measured against it (bench/fit_bounded.py):
+  is far apart however close their numbers). Measured against it (bench/neural/fit_bounded.py):
   the normalised parameters (``plain``) and the normalised parameters weighed by the RMS change
   of log(1 + reflected light) per unit of each (``appearance``, the fit error's measure
   linearised over the material).
