@@ -47,10 +47,11 @@ from bench.neural_error_budget import ASSETS as HELD_OUT_ASSETS
 from support.agreement_cases import Case, cases
 from support.real_cases import real_cases
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
-from torch_models.neural import fitting, free_lobes, trained
+from torch_models.neural import fitting, trained
 from torch_models.neural.bsdf import NeuralBsdf
-from torch_models.neural.closure_form import ClosureForm, closure_model
 from torch_models.neural.evaluate import KEY_LIGHT, SCENES, BallSetup, ball_image
+from torch_models.neural.hybrid import free_lobes
+from torch_models.neural.hybrid.closure_form import ClosureForm, closure_model
 from torch_models.neural.model import NeuralModel
 from torch_models.render.flip import mean_flip
 

@@ -49,7 +49,7 @@ from torch_models.neural.mlp.energy import REFIT_STEPS
 from torch_models.neural.model import NeuralModel
 from torch_models.neural.real_vectors import enhanced_folders
 from torch_models.neural.bsdf import NeuralBsdf
-from torch_models.neural.closure_form import closure_model
+from torch_models.neural.hybrid.closure_form import closure_model
 from torch_models.neural.evaluate import DEFAULT_PROBE, KEY_LIGHT, SCENES
 from torch_models.render.ball import Sun, shade_gbuffer
 from torch_models.render.envmap import EnvMap

@@ -7,8 +7,9 @@ import pytest
 import torch
 
 from support.agreement_cases import cases
-from torch_models.neural import fitting, free_lobes, trained
-from torch_models.neural.closure_form import ClosureForm
+from torch_models.neural import fitting, trained
+from torch_models.neural.hybrid import free_lobes
+from torch_models.neural.hybrid.closure_form import ClosureForm
 from torch_models.neural.model import NeuralModel
 
 

@@ -3,7 +3,7 @@
 A hybrid decoder draws every material through a 6D latent and two small shared networks,
 so what it cannot draw may be the lobe form's limit (K GGX lobes, diffuse, sheen, T) or the
 price of the shared networks and the latent space. Here each material gets its own head and
-its own view gates, both linear in the view features (``hybrid.view_features``), so the slot
+its own view gates, both linear in the view features (``networks.view_features``), so the slot
 weights still follow the view angle as a coat's Fresnel needs, and the gates read wi only:
 the result is exactly a set of closures, as a view-gated decoder's are. Fitted with the
 decoder's own loss, it measures how far the lobes themselves reach, which a decoder drawing
@@ -19,12 +19,12 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from . import fitting
+from .. import fitting
+from ..model import NeuralModel
 from .closure_form import ClosureForm
-from .hybrid import HybridDecoder, LobeSampler, view_features
-from .model import NeuralModel
+from .networks import HybridDecoder, LobeSampler, view_features
 
-VIEW_FEATURES = 3  # hybrid.view_features: cos, sin and the Schlick term of the view angle
+VIEW_FEATURES = 3  # networks.view_features: cos, sin and the Schlick term of the view angle
 
 
 class ViewLinear(nn.Module):
