@@ -173,7 +173,8 @@ def sheen_hybrid(folder: Path) -> Path:
     import torch
     from safetensors.torch import save_file
 
-    from torch_models.neural.hybrid.kind import KIND, HybridConfig
+    from torch_models.neural.hybrid.config import HybridConfig
+    from torch_models.neural.hybrid.kind import KIND
     from torch_models.neural.networks import Encoder
 
     torch.manual_seed(0)

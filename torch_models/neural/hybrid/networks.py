@@ -108,7 +108,7 @@ class HybridDecoder(nn.Module):
 
     def __init__(self, lobes: int, width: int, gate_width: int, gate_depth: int, alpha_floor: float,
                  unit_lobes: bool, sheen: bool, view_gates: bool = False) -> None:
-        """Sizes and options from the run's config (``kind.HybridConfig``)."""
+        """Sizes and options from the run's config (``hybrid.config.HybridConfig``)."""
         super().__init__()
         self.lobes, self.width, self.gate_width, self.gate_depth = lobes, width, gate_width, gate_depth
         self.unit_lobes, self.sheen, self.view_gates = unit_lobes, sheen, view_gates
