@@ -19,7 +19,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from .. import fitting
+from ..fit.latents import FIT_BATCH, fit_latents
 from ..model import NeuralModel
 from .closure_form import ClosureForm
 from .networks import HybridDecoder, LobeSampler, view_features
@@ -88,10 +88,10 @@ def start_from(model: NeuralModel, free: NeuralModel, z: Tensor, views: int = 16
 
 
 def fit_free(model: NeuralModel, vectors: np.ndarray, z: Tensor, steps: int, per_vector: int, seed: int = 0,
-             batch: int = fitting.FIT_BATCH) -> tuple[NeuralModel, Tensor]:
+             batch: int = FIT_BATCH) -> tuple[NeuralModel, Tensor]:
     """The free lobe form of ``model`` and its parameters for each vector, fitted with the decoder's
     loss, starting from the decoder's latents ``z`` of those vectors (its closure form there)."""
     free = free_model(model)
-    params = fitting.fit_latents(free, vectors, steps, batch, seed=seed, per_vector=per_vector,
-                                 start=start_from(model, free, z))
+    params = fit_latents(free, vectors, steps, batch, seed=seed, per_vector=per_vector,
+                         start=start_from(model, free, z))
     return free, params
