@@ -1,6 +1,6 @@
 """Fit step of one asset (a torch process): every enhanced material of the work folder.
 
-Runs the fit (``torch_models.neural.fit_material``, what ``python -m torch_models fit``
+Runs the fit (``torch_models.neural.fit.material``, what ``python -m torch_models fit``
 runs) once per material folder (``materials/<name>/`` -> ``materials/<name>/neural/``),
 in one process, so torch is imported once per asset, and writes ``fit.json`` with each material's white-furnace
 result. The fit refits a latent that gains energy under the energy bound and
@@ -34,7 +34,7 @@ def main(argv: list[str]) -> int:
     from richmat_addon.core import material_folder
     from richmat_addon.core.stage_clock import StageClock
     from torch_models.neural import trained
-    from torch_models.neural.fit_material import FitSettings, fit_material
+    from torch_models.neural.fit.material import FitSettings, fit_material
 
     clock = StageClock()
     torch.set_num_threads(args.threads)

@@ -22,7 +22,7 @@ DEFAULT_DECODER = REPO / "torch_models" / "neural" / "weights"
 # 5 M triangles import in about 25 s with 1.2 GB of memory (docs/batch.md); far beyond any one material's needs.
 DEFAULT_MAX_TRIANGLES = 5_000_000
 # The fit's own step (core.texel_vectors.QUANT); the fit's cost grows with the vectors it leaves, since each
-# gets its own samples (torch_models.neural.fitting.SAMPLES_PER_VECTOR).
+# gets its own samples (torch_models.neural.fit.latents.SAMPLES_PER_VECTOR).
 DEFAULT_CLUSTER_STEP = 1 / 256
 # How OIDN treats the albedo and normal passes it denoises the beauty with: "accurate" denoises them
 # first, which costs about half of a 512 px, 16 spp beauty frame on one thread; "fast" takes them as

@@ -14,8 +14,9 @@ from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.schema import CHANNEL_SLICES
 from richmat_addon.core.texel_vectors import read_vectors
-from torch_models.neural import representatives, trained
-from torch_models.neural.fit_material import FitSettings, fit_material
+from torch_models.neural import trained
+from torch_models.neural.fit import representatives
+from torch_models.neural.fit.material import FitSettings, fit_material
 
 BUDGET, STEPS = 256, 2
 

@@ -4,8 +4,9 @@ from __future__ import annotations
 import numpy as np
 
 from richmat_addon.core.schema import bounds
-from torch_models.neural import fitting, trained
+from torch_models.neural import trained
 from torch_models.neural.data import parameter_vectors
+from torch_models.neural.fit.latents import fit_latents, fitting_pool, held_out_loss
 
 N, COPIES, STEPS, BATCH, PER_VECTOR = 32, 8, 100, 128, 16
 
@@ -24,10 +25,10 @@ def test_a_vector_fits_as_well_among_eight_times_as_many() -> None:
     crowd = jittered_copies(alone, COPIES, rng)
 
     def held_out(vectors: np.ndarray, per_vector: int) -> float:
-        z = fitting.fit_latents(model, vectors, STEPS, batch=BATCH, per_vector=per_vector)
-        return fitting.held_out_loss(model, alone, z[:N])
+        z = fit_latents(model, vectors, STEPS, batch=BATCH, per_vector=per_vector)
+        return held_out_loss(model, alone, z[:N])
 
-    start = fitting.held_out_loss(model, alone, model.encoder(fitting.fitting_pool(model, alone)).detach())
+    start = held_out_loss(model, alone, model.encoder(fitting_pool(model, alone)).detach())
     per_vector = held_out(alone, PER_VECTOR), held_out(crowd, PER_VECTOR)
     shared = held_out(alone, 0), held_out(crowd, 0)  # one batch of BATCH samples, however many vectors
     assert per_vector[0] < 0.9 * start  # the fit did fit

@@ -7,8 +7,10 @@ import pytest
 import torch
 
 from support.agreement_cases import cases
-from torch_models.neural import fitting, free_lobes, trained
-from torch_models.neural.closure_form import ClosureForm
+from torch_models.neural import trained
+from torch_models.neural.fit.latents import deterministic, fit_latents, fitting_pool, held_out_loss
+from torch_models.neural.hybrid import free_lobes
+from torch_models.neural.hybrid.closure_form import ClosureForm
 from torch_models.neural.model import NeuralModel
 
 
@@ -22,7 +24,7 @@ def test_the_free_form_starts_at_the_decoders_closure_form(model: NeuralModel) -
     fit of the head and gates over the view angle."""
     free = free_lobes.free_model(model)
     metals = [c for c in cases(0, 2, 0) if "metal" in c.name]
-    z = model.encoder(fitting.fitting_pool(model, np.stack([c.vector() for c in metals]))).detach()
+    z = model.encoder(fitting_pool(model, np.stack([c.vector() for c in metals]))).detach()
     params = free_lobes.start_from(model, free, z)
     gen = torch.Generator().manual_seed(0)
     wi, wo = (torch.nn.functional.normalize(torch.rand(256, 3, generator=gen) * torch.tensor([2.0, 2.0, 1.0])
@@ -52,9 +54,9 @@ def test_fitting_the_free_form_lowers_the_decoders_loss_on_coated_metals(model: 
     """More freedom per material fits better: held-out loss below the decoder's own, gates and all."""
     metals = [c for c in cases(0, 2, 0) if "metal" in c.name][:2]
     vectors = np.stack([c.vector() for c in metals])
-    with fitting.deterministic():
-        z = fitting.fit_latents(model, vectors, 100, 1024, seed=0, per_vector=512)
+    with deterministic():
+        z = fit_latents(model, vectors, 100, 1024, seed=0, per_vector=512)
         free, params = free_lobes.fit_free(model, vectors, z, 100, per_vector=512, batch=1024)
-    decoder_loss = fitting.held_out_loss(model, vectors, z)
-    free_loss = fitting.held_out_loss(free, vectors, params)
+    decoder_loss = held_out_loss(model, vectors, z)
+    free_loss = held_out_loss(free, vectors, params)
     assert free_loss < 0.9 * decoder_loss, (free_loss, decoder_loss)

@@ -14,8 +14,9 @@ from torch_models.brdf.lobes import sheen_albedo, sheen_eval
 from torch_models.cli import main
 from torch_models.neural import energy, furnace, kinds, quadrature, trained
 from torch_models.neural.data import cosine_hemisphere, view_directions
-from torch_models.neural.hybrid import HybridDecoder, LobeSampler
-from torch_models.neural.hybrid_kind import KIND, HybridConfig, bound_furnace
+from torch_models.neural.hybrid.config import HybridConfig
+from torch_models.neural.hybrid.kind import KIND, bound_furnace
+from torch_models.neural.hybrid.networks import HybridDecoder, LobeSampler
 from torch_models.neural.model import NeuralModel
 from torch_models.neural.networks import Encoder, direction_features
 from tests.chi2 import chi2_test, sidak_threshold

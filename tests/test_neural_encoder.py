@@ -13,7 +13,9 @@ from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.neural_encoder import GGX_ALPHAS, Encoder, encode_material
 from richmat_addon.core.schema import bounds
 from richmat_addon.core.texel_vectors import read_vectors
-from torch_models.neural import data, fitting, material_vectors, trained
+from torch_models.neural import data, trained
+from torch_models.neural.fit import material_vectors
+from torch_models.neural.fit.latents import fitting_pool
 
 SHIPPED = trained.SHIPPED
 
@@ -39,7 +41,7 @@ def test_floor_and_alphas_follow_the_torch_fit() -> None:
     assert set(GGX_ALPHAS) == set(data.GGX_ALPHAS)
     model, encoder = trained.load(SHIPPED), Encoder.load(SHIPPED)
     vectors = random_vectors(512, seed=1)
-    np.testing.assert_array_equal(encoder.floored(vectors), fitting.fitting_pool(model, vectors).numpy())
+    np.testing.assert_array_equal(encoder.floored(vectors), fitting_pool(model, vectors).numpy())
 
 
 def test_encoder_only_fit_writes_the_encoder_latents_deduplicated_as_torch_does(tmp_path: Path) -> None:
@@ -59,6 +61,6 @@ def test_encoder_only_fit_writes_the_encoder_latents_deduplicated_as_torch_does(
     assert folder.decoder_sha256 == trained.digest(SHIPPED) and folder.energy_scale == 1.0
     model = trained.load(SHIPPED)
     with torch.no_grad():
-        expected = theirs.texels(model.encoder(fitting.fitting_pool(model, theirs.unique)))
+        expected = theirs.texels(model.encoder(fitting_pool(model, theirs.unique)))
     latents = np.concatenate([read_exr(p) for p in folder.latent_paths], -1)
     np.testing.assert_allclose(latents, expected, rtol=0, atol=1e-3)  # half-float EXRs

@@ -15,7 +15,9 @@ from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.texel_vectors import normalise, texel_matrix
 from torch_models.cli import main
-from torch_models.neural import energy, fit_error, fitting, furnace, loss, material_vectors, quadrature, trained
+from torch_models.neural import energy, furnace, loss, quadrature, trained
+from torch_models.neural.fit import latents, material_vectors
+from torch_models.neural.fit.error import vector_errors
 from tests.test_neural_training import TINY
 
 
@@ -106,7 +108,7 @@ def test_fit_is_bit_reproducible_with_threads(tiny_weights: Path) -> None:
     vectors = parameter_vectors(256, np.random.default_rng(0))
     torch.set_num_threads(2)
     try:
-        runs = {fitting.fit_latents(model, vectors, 3).numpy().tobytes() for _ in range(4)}
+        runs = {latents.fit_latents(model, vectors, 3).numpy().tobytes() for _ in range(4)}
     finally:
         torch.set_num_threads(threads)
     assert len(runs) == 1
@@ -136,10 +138,10 @@ def test_interrupted_fit_resumes(tiny_weights: Path, textured: Path, tmp_path: P
         return real(*args, **kwargs)
 
     out = tmp_path / "fit"
-    monkeypatch.setattr(fitting, "decoder_loss", interrupting)
+    monkeypatch.setattr(latents, "decoder_loss", interrupting)
     assert main(["fit", str(textured), "--out", str(out), "--weights", str(tiny_weights), "--steps", "6"]) == 130
     assert (out / "fit_state.safetensors").exists() and not (out / "neural.json").exists()
-    monkeypatch.setattr(fitting, "decoder_loss", real)
+    monkeypatch.setattr(latents, "decoder_loss", real)
     assert main(["fit", str(textured), "--out", str(out), "--weights", str(tiny_weights), "--steps", "6",
                  "--resume"]) == 0
     assert (out / "neural.json").exists() and not (out / "fit_state.safetensors").exists()
@@ -243,8 +245,8 @@ def test_fitting_applies_the_decoders_angular_floor(tiny_weights: Path, tmp_path
     for name in ("alpha_core", "coat_alpha"):
         mirror[:, CHANNEL_SLICES[name]] = 1e-3
     at_floor = angular_floor(mirror, 0.02).numpy()
-    assert torch.equal(fitting.fit_latents(floored, mirror, 5), fitting.fit_latents(floored, at_floor, 5))
-    assert not torch.equal(fitting.fit_latents(model, mirror, 5), fitting.fit_latents(model, at_floor, 5))
+    assert torch.equal(latents.fit_latents(floored, mirror, 5), latents.fit_latents(floored, at_floor, 5))
+    assert not torch.equal(latents.fit_latents(model, mirror, 5), latents.fit_latents(model, at_floor, 5))
 
 
 def test_the_fit_error_is_higher_for_latents_of_other_materials() -> None:
@@ -255,9 +257,9 @@ def test_the_fit_error_is_higher_for_latents_of_other_materials() -> None:
     torch.manual_seed(0)
     model = trained.load(trained.SHIPPED)
     vectors = np.stack([c.vector() for c in cases(1, 1, 0)])
-    z = fitting.fit_latents(model, vectors, 100)
+    z = latents.fit_latents(model, vectors, 100)
     ones = torch.ones(len(z))
-    fitted = fit_error.vector_errors(model, vectors, z, ones)
-    wrong = fit_error.vector_errors(model, vectors, z.roll(1, 0), ones)
+    fitted = vector_errors(model, vectors, z, ones)
+    wrong = vector_errors(model, vectors, z.roll(1, 0), ones)
     assert (fitted < wrong).all() and fitted.mean() < 0.5 * wrong.mean()
-    assert np.array_equal(fitted, fit_error.vector_errors(model, vectors, z, ones))  # seeded: the same number
+    assert np.array_equal(fitted, vector_errors(model, vectors, z, ones))  # seeded: the same number

@@ -24,7 +24,7 @@ def closure_form(folder: Path):
     """The weights' model with the hybrid's gates held constant over wo, as the shader's closures are."""
     import dataclasses
 
-    from torch_models.neural.closure_form import ClosureForm
+    from torch_models.neural.hybrid.closure_form import ClosureForm
     from torch_models.neural.trained import load
 
     model = load(folder)
@@ -65,7 +65,7 @@ def test_closure_form_holds_each_gate_at_its_mean_over_the_lobe(tiny_hybrid: Pat
     converge to the quadrature's mean; a gate that is constant over wo is left exactly as it was."""
     import torch
 
-    from torch_models.neural.closure_form import stratified
+    from torch_models.neural.hybrid.closure_form import stratified
 
     form = closure_form(tiny_hybrid).decoder
     decoder = form.decoder
@@ -173,7 +173,8 @@ def sheen_hybrid(folder: Path) -> Path:
     import torch
     from safetensors.torch import save_file
 
-    from torch_models.neural.hybrid_kind import KIND, HybridConfig
+    from torch_models.neural.hybrid.config import HybridConfig
+    from torch_models.neural.hybrid.kind import KIND
     from torch_models.neural.networks import Encoder
 
     torch.manual_seed(0)

@@ -128,8 +128,10 @@ def fit_types_and_compare(args: argparse.Namespace, model: NeuralModel, material
     from richmat_addon.core.maps import ParamMap
 
     from .demo_render import captioned_row, neural_bsdf, render_balls, save_sheet, to_u8
-    from .neural import energy, fitting, material_vectors
+    from .neural import energy
     from .neural.evaluate import compare
+    from .neural.fit import material_vectors
+    from .neural.fit.latents import fit_latents
 
     folders = [args.out / f"type_{m.type}" for m in materials]
     vectors = [material_vectors.read_vectors(f) for f in folders]
@@ -140,8 +142,8 @@ def fit_types_and_compare(args: argparse.Namespace, model: NeuralModel, material
     progress.reweigh("energy guard", expected_seconds(args, len(pool), model.decoder.bounded)["energy guard"])
     progress.start("fit neural materials")
     progress.write(f"fitting the {len(pool)} distinct texel vectors of Types 0-5 with the shipped decoder")
-    z = fitting.fit_latents(model, pool, args.fit_steps, seed=args.seed,
-                            progress=lambda *_: progress.advance(1 / args.fit_steps))
+    z = fit_latents(model, pool, args.fit_steps, seed=args.seed,
+                    progress=lambda *_: progress.advance(1 / args.fit_steps))
     progress.start("energy guard")
     bounded = energy.fit_bounded(model, pool, z, seed=args.seed, steps=args.refit_steps)
     progress.advance(1.0)

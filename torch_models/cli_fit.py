@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
 
     from .cli import InputError, emit, emit_done
     from .neural import trained
-    from .neural.fit_material import FitInterrupted, FitSettings, fit_material
+    from .neural.fit.material import FitInterrupted, FitSettings, fit_material
 
     jsonl = args.progress == "jsonl"
     settings = FitSettings(steps=args.steps, seed=args.seed, budget=args.budget,

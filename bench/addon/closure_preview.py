@@ -43,8 +43,8 @@ from richmat_addon.core.neural_osl import neural_osl_source
 from richmat_addon.core.tensor_file import read_safetensors
 from torch_models.neural import trained
 from torch_models.neural.bsdf import NeuralBsdf
-from torch_models.neural.closure_form import closure_model
 from torch_models.neural.evaluate import DEFAULT_PROBE, KEY_LIGHT, SCENES, BallSetup, ball_image
+from torch_models.neural.hybrid.closure_form import closure_model
 from torch_models.render.ball import Sun
 from torch_models.render.flip import flip_map, mean_flip
 from torch_models.render.tonemap import agx

@@ -3,7 +3,7 @@
 Table 1's report (bench/neural/fit_flip.py) holds, per material, the FLIP of its fitted ball against
 the analytic ball. This bench draws the same materials, fits them as that bench did (same
 decoder, steps and seed: the fit is deterministic), measures each fit's error
-(``neural/fit_error.py``) and sets it beside the reported FLIP: the rank correlation, and how
+(``neural/fit/error.py``) and sets it beside the reported FLIP: the rank correlation, and how
 often the grade agrees with the FLIP bands (good: FLIP <= 0.05, Table 1's median level; poor:
 FLIP > 0.10, its worst target). No rendering: the FLIP is read from the report.
 
@@ -24,8 +24,8 @@ from bench.common import REPORTS, add_out_argument, pyplot, save_chart, write_re
 from richmat_addon.core import fit_error as grades
 from torch_models.neural import trained
 from torch_models.neural.energy import fit_bounded
-from torch_models.neural.fit_error import vector_errors
-from torch_models.neural.fitting import fit_latents
+from torch_models.neural.fit.error import vector_errors
+from torch_models.neural.fit.latents import fit_latents
 
 FLIP_GOOD, FLIP_POOR = 0.05, 0.10
 

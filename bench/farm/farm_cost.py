@@ -66,7 +66,7 @@ from torch_models.neural import trained
 from torch_models.neural.model import NeuralModel
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.evaluate import DEFAULT_PROBE, compare
-from torch_models.neural.fitting import fit_latents
+from torch_models.neural.fit.latents import fit_latents
 from torch_models.render.envmap import EnvMap
 
 MODELS = REPO.parent / "shared" / "assets" / "models"

@@ -24,7 +24,7 @@ from richmat_addon.core.enhancement_types import TYPES
 from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors
 from torch_models.neural import trained
 from torch_models.neural.model import NeuralModel
-from torch_models.neural.fitting import fit_latents
+from torch_models.neural.fit.latents import fit_latents
 from torch_models.neural.quadrature import half_vector_nodes
 
 VIEW_COSINES = (1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2, 0.15, 0.1, 0.05)

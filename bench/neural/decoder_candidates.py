@@ -47,10 +47,12 @@ from bench.neural.neural_error_budget import ASSETS as HELD_OUT_ASSETS
 from support.agreement_cases import Case, cases
 from support.real_cases import real_cases
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
-from torch_models.neural import fitting, free_lobes, trained
+from torch_models.neural import trained
 from torch_models.neural.bsdf import NeuralBsdf
-from torch_models.neural.closure_form import ClosureForm, closure_model
 from torch_models.neural.evaluate import KEY_LIGHT, SCENES, BallSetup, ball_image
+from torch_models.neural.fit.latents import deterministic, fit_latents, held_out_loss
+from torch_models.neural.hybrid import free_lobes
+from torch_models.neural.hybrid.closure_form import ClosureForm, closure_model
 from torch_models.neural.model import NeuralModel
 from torch_models.render.flip import mean_flip
 
@@ -69,9 +71,9 @@ LABELS = {  # by weights folder name: the shipped decoder's, then the candidates
 
 def fitted(model: NeuralModel, vectors: np.ndarray, per_vector: int) -> tuple[torch.Tensor, float]:
     """Every vector's latent (one fit), and the held-out loss of the fit."""
-    with fitting.deterministic():
-        z = fitting.fit_latents(model, vectors, FIT_STEPS, seed=0, per_vector=per_vector).detach()
-    return z, fitting.held_out_loss(model, vectors, z)
+    with deterministic():
+        z = fit_latents(model, vectors, FIT_STEPS, seed=0, per_vector=per_vector).detach()
+    return z, held_out_loss(model, vectors, z)
 
 
 def gate_seconds(model: NeuralModel, points: int = 1 << 15) -> float:
@@ -105,9 +107,9 @@ def measure(chosen: list[Case], decoders: dict[str, NeuralModel], per_vector: in
     vectors = np.stack([c.vector() for c in chosen])
     fits = {name: fitted(m, vectors, per_vector) for name, m in decoders.items()}
     first = next(iter(decoders))
-    with fitting.deterministic():
+    with deterministic():
         free, params = free_lobes.fit_free(decoders[first], vectors, fits[first][0], FREE_STEPS, per_vector)
-    fits["lobe_form"] = params, fitting.held_out_loss(free, vectors, params)
+    fits["lobe_form"] = params, held_out_loss(free, vectors, params)
     rows = []
     for i, case in enumerate(chosen):
         base = torch.tensor([case.base_color], dtype=torch.float32)

@@ -3,7 +3,7 @@
 For each real asset (../shared/assets/models/*.glb), every material is enhanced
 (Type auto, seed S) at its textures' own resolution and its texel vectors are
 counted: all texels, exact-distinct vectors, and representatives after the
-clustering of ``material_vectors.read_vectors`` (each texel within 1/512 of its
+clustering of ``fit.material_vectors.read_vectors`` (each texel within 1/512 of its
 representative per normalised parameter). At a fixed budget of samples per
 fitted vector, a fit's decoder evaluations are proportional to the number of
 vectors fitted, so the ratio texels / representatives is the saving.
@@ -33,8 +33,8 @@ from torch_models.neural import trained
 from torch_models.neural.model import NeuralModel
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.evaluate import DEFAULT_PROBE, compare
-from torch_models.neural.fitting import fit_latents
-from torch_models.neural.material_vectors import MaterialVectors, read_vectors
+from torch_models.neural.fit.latents import fit_latents
+from torch_models.neural.fit.material_vectors import MaterialVectors, read_vectors
 from torch_models.render.ball import shade_gbuffer
 from torch_models.render.envmap import EnvMap
 from torch_models.render.tonemap import agx

@@ -16,7 +16,7 @@ size, not its detail), enhanced at the farm's defaults (type auto, seed 0), at t
   measured whole, CPU seconds of choosing the representatives, fitting them, the energy check
   and the error readout.
 
-Accuracy: the fit error (the add-on's measure, ``fit_error.py``) of the probe's vectors
+Accuracy: the fit error (the add-on's measure, ``neural/fit/error.py``) of the probe's vectors
 under the latents each design gives them: 2 048 texels drawn at random (texel-weighted: what
 an image shows) and 512 distinct vectors (every vector alike: where merging loses most);
 "transfer cost" is how much a design adds to the per-vector fit on the same vectors. The
@@ -47,10 +47,13 @@ from richmat_addon.core.maps import ParamMap
 from richmat_addon.core.texel_vectors import FIT_BUDGET, QUANT, TexelVectors, read_vectors
 from support.paths import SHARED_ASSETS
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
-from torch_models.neural import energy, fit_error, fitting, representatives, trained
+from torch_models.neural import energy, trained
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.evaluate import DEFAULT_PROBE, compare
-from torch_models.neural.fit_material import FitSettings, fit_material
+from torch_models.neural.fit import representatives
+from torch_models.neural.fit.error import vector_errors
+from torch_models.neural.fit.latents import fit_latents
+from torch_models.neural.fit.material import FitSettings, fit_material
 from torch_models.neural.model import NeuralModel
 from torch_models.neural.real_vectors import enhanced_folders
 from torch_models.render.envmap import EnvMap
@@ -117,7 +120,7 @@ class Probe:
     def accuracy(self, model: NeuralModel, vectors: np.ndarray, z: torch.Tensor) -> dict:
         """Fit error over the probe's texels and distinct vectors, and the crop's FLIP, of latents
         ``z`` (one per merged vector of ``vectors``)."""
-        errors = fit_error.vector_errors(model, vectors[self.index], z[self.index], torch.ones(len(self.index)))
+        errors = vector_errors(model, vectors[self.index], z[self.index], torch.ones(len(self.index)))
         neural = NeuralBsdf(model, z[torch.from_numpy(self.crop)], self.colours)
         with torch.no_grad():
             flip = compare(self.reference, flat_patch(lambda n: neural, self.env, CROP, 0)).flip
@@ -130,13 +133,13 @@ def per_vector(model: NeuralModel, mv: TexelVectors, probe: Probe, seed: int) ->
     """Today's fit of every vector, measured on the probe's vectors and priced per vector."""
     vectors = mv.unique[probe.index]
     # batch 1: every vector gets exactly its 4 samples a step, as among the tens of thousands of a 1k texture
-    z, seconds = cpu(lambda: fitting.fit_latents(model, vectors, STEPS, batch=1, seed=seed))
+    z, seconds = cpu(lambda: fit_latents(model, vectors, STEPS, batch=1, seed=seed))
     full = torch.zeros(len(mv.unique), 6)
     full[probe.index] = z
     crop = np.unique(probe.crop)
     missing = np.setdiff1d(crop, probe.index)
     if len(missing):
-        full[missing] = fitting.fit_latents(model, mv.unique[missing], STEPS, batch=1, seed=seed)
+        full[missing] = fit_latents(model, mv.unique[missing], STEPS, batch=1, seed=seed)
     row = probe.accuracy(model, mv.unique, full)
     row.update(design="per vector", fit_cpu=seconds / len(vectors) * len(mv.unique), extrapolated=True,
                vectors_fitted=len(mv.unique))
@@ -150,11 +153,11 @@ def bounded(model: NeuralModel, mv: TexelVectors, probe: Probe, budget: int, met
     if key not in fitted:
         counts = np.bincount(mv.inverse, minlength=len(mv.unique)).astype(np.float64)
         reps, choose = cpu(lambda: representatives.choose(model, mv.unique, counts, budget, seed, metric))
-        z, fit = cpu(lambda: fitting.fit_latents(model, reps.vectors, STEPS, seed=seed))
+        z, fit = cpu(lambda: fit_latents(model, reps.vectors, STEPS, seed=seed))
         checked, check = cpu(lambda: energy.fit_bounded(model, reps.vectors, z, seed, steps=min(150, STEPS)))
         drawn = representatives.draw_members(reps, counts, seed)
-        estimate, readout = cpu(lambda: fit_error.vector_errors(model, mv.unique[drawn], checked.z,
-                                                                checked.check.energy_scale(), seed))
+        estimate, readout = cpu(lambda: vector_errors(model, mv.unique[drawn], checked.z,
+                                                      checked.check.energy_scale(), seed))
         weight = np.bincount(reps.of_vector, counts, len(reps))
         fitted[key] = (reps, checked.z, {"choose_cpu": choose, "fit_cpu": fit, "energy_cpu": check,
                                          "readout_cpu": readout, "vectors_fitted": len(reps),

@@ -14,7 +14,7 @@ same share of a texture, for each ``L`` of ``--looks``, and fits it
   a texture's tens of thousands), measured on the probe's looks only: each look's fit does
   not depend on the others'.
 
-Accuracy is the fit error (the add-on's measure, ``fit_error.py``) of up to 512 looks drawn
+Accuracy is the fit error (the add-on's measure, ``neural/fit/error.py``) of up to 512 looks drawn
 at random, each under the latent its design gives it: mean and 90th percentile (a merged
 look is wrong everywhere it shows). One thread, 300 steps.
 
@@ -32,8 +32,11 @@ import torch
 from bench.common import add_out_argument, pyplot, save_chart, write_report
 from bench.neural.fit_bounded import STEPS, cpu
 from richmat_addon.core.texel_vectors import FIT_BUDGET
-from torch_models.neural import fit_error, fitting, representatives, trained
+from torch_models.neural import trained
 from torch_models.neural.data import parameter_vectors
+from torch_models.neural.fit import representatives
+from torch_models.neural.fit.error import vector_errors
+from torch_models.neural.fit.latents import fit_latents
 from torch_models.neural.model import NeuralModel
 
 PROBE = 512
@@ -42,19 +45,19 @@ TEXELS = 1 << 20  # a 1k texture: each look's weight is its share of it
 
 def errors(model: NeuralModel, vectors: np.ndarray, z: torch.Tensor, seed: int) -> dict:
     """Mean and 90th percentile of the fit error of ``vectors`` under latents ``z``."""
-    e = fit_error.vector_errors(model, vectors, z, torch.ones(len(vectors)), seed)
+    e = vector_errors(model, vectors, z, torch.ones(len(vectors)), seed)
     return {"mean_error": float(np.mean(e)), "p90_error": float(np.percentile(e, 90))}
 
 
 def bounded(model: NeuralModel, looks: np.ndarray, probe: np.ndarray, budget: int, seed: int) -> dict:
     """The shipped fit's path at ``budget``: representatives past it, every look up to it."""
     if len(looks) <= budget:
-        z, fit = cpu(lambda: fitting.fit_latents(model, looks, STEPS, seed=seed))
+        z, fit = cpu(lambda: fit_latents(model, looks, STEPS, seed=seed))
         return {"fit_cpu": fit, "choose_cpu": 0.0, "vectors_fitted": len(looks),
                 **errors(model, looks[probe], z[probe], seed)}
     counts = np.full(len(looks), TEXELS / len(looks))
     reps, choose = cpu(lambda: representatives.choose(model, looks, counts, budget, seed))
-    z, fit = cpu(lambda: fitting.fit_latents(model, reps.vectors, STEPS, seed=seed))
+    z, fit = cpu(lambda: fit_latents(model, reps.vectors, STEPS, seed=seed))
     given = representatives.transfer(model, looks, reps, z, "nearest")
     return {"fit_cpu": fit, "choose_cpu": choose, "vectors_fitted": len(reps),
             **errors(model, looks[probe], given[probe], seed)}
@@ -62,7 +65,7 @@ def bounded(model: NeuralModel, looks: np.ndarray, probe: np.ndarray, budget: in
 
 def per_vector(model: NeuralModel, looks: np.ndarray, probe: np.ndarray, seed: int) -> dict:
     """Every look fitted with its own 4 samples a step, priced per look."""
-    z, seconds = cpu(lambda: fitting.fit_latents(model, looks[probe], STEPS, batch=1, seed=seed))
+    z, seconds = cpu(lambda: fit_latents(model, looks[probe], STEPS, batch=1, seed=seed))
     return {"fit_cpu": seconds / len(probe) * len(looks), "extrapolated": True, "vectors_fitted": len(looks),
             **errors(model, looks[probe], z, seed)}
 

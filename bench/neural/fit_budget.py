@@ -6,7 +6,7 @@ the same texels are fitted among fewer or more unique vectors. Each fit runs twi
 the same vectors: with the old budget (``FIT_BATCH`` samples a step shared by all
 vectors, ``per_vector=0``) and with today's (at least ``SAMPLES_PER_VECTOR`` a vector
 and step). Accuracy is the fitting loss on held-out directions
-(``fitting.held_out_loss``) of ``--texels`` random texels' own vectors under their
+(``fit.latents.held_out_loss``) of ``--texels`` random texels' own vectors under their
 representatives' latents, so clustering's error counts as well as the fit's. CPU
 seconds of each fit are recorded with one thread.
 
@@ -26,8 +26,8 @@ from bench.common import add_out_argument, pyplot, save_chart, write_report
 from bench.neural.fit_full_size import ADDON_FIT_STEPS, enhance_asset
 from richmat_addon.core.texel_vectors import texel_matrix
 from torch_models.neural import trained
-from torch_models.neural.fitting import FIT_BATCH, SAMPLES_PER_VECTOR, fit_latents, held_out_loss
-from torch_models.neural.material_vectors import read_vectors
+from torch_models.neural.fit.latents import FIT_BATCH, SAMPLES_PER_VECTOR, fit_latents, held_out_loss
+from torch_models.neural.fit.material_vectors import read_vectors
 
 BUDGETS = {"shared": 0, "per vector": SAMPLES_PER_VECTOR}  # fit_latents' per_vector
 

@@ -29,8 +29,8 @@ from torch_models.cli import main as cli
 from torch_models.neural import trained
 from torch_models.neural.model import NeuralModel
 from torch_models.neural.energy import fit_bounded
-from torch_models.neural.fitting import fit_latents
-from torch_models.neural.material_vectors import read_vectors
+from torch_models.neural.fit.latents import fit_latents
+from torch_models.neural.fit.material_vectors import read_vectors
 
 ASSETS = ("WaterBottle", "CesiumMilkTruck", "FlightHelmet")
 ADDON_FIT_STEPS = 300  # richmat_addon/blender/props.py fit_steps default

@@ -34,8 +34,8 @@ from bench.common import add_out_argument, add_weights_argument, pyplot, save_ch
 from torch_models.neural import trained
 from torch_models.neural.model import NeuralModel
 from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference
-from torch_models.neural.fitting import FIT_BATCH, fit_latents
-from torch_models.neural.hybrid import HybridDecoder
+from torch_models.neural.fit.latents import FIT_BATCH, fit_latents
+from torch_models.neural.hybrid.networks import HybridDecoder
 from torch_models.neural.networks import LATENT
 
 STEPS = (0, 25, 50, 100, 200, 400, 800)

@@ -26,7 +26,7 @@ from torch_models.neural import trained
 from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.furnace import furnace
 from torch_models.neural.evaluate import BallSetup
-from torch_models.neural.fitting import fit_latents
+from torch_models.neural.fit.latents import fit_latents
 from torch_models.neural.glints import GlintPattern, Glints
 from torch_models.render.ball import render_ball
 from torch_models.render.tonemap import agx

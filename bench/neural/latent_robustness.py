@@ -33,7 +33,7 @@ from torch_models.neural import trained
 from torch_models.neural.model import NeuralModel
 from torch_models.neural.energy import guard
 from torch_models.neural.evaluate import BallSetup, compare, render_neural, render_reference
-from torch_models.neural.fitting import fit_latents
+from torch_models.neural.fit.latents import fit_latents
 from torch_models.neural.validity import Validity, check_latents, enlarged, training_latent_box
 
 NOISE = 0.05

@@ -44,12 +44,13 @@ from torch_models.brdf.model import LayeredBsdf, params_from_vectors
 from torch_models.generator.generate import preview_cameras
 from torch_models.generator.mesh_input import load_mesh
 from torch_models.generator.views import render_intrinsics, sample_texture
-from torch_models.neural import energy, fitting, trained
+from torch_models.neural import energy, trained
+from torch_models.neural.fit.latents import fit_latents, held_out_loss
 from torch_models.neural.mlp.energy import REFIT_STEPS
 from torch_models.neural.model import NeuralModel
 from torch_models.neural.real_vectors import enhanced_folders
 from torch_models.neural.bsdf import NeuralBsdf
-from torch_models.neural.closure_form import closure_model
+from torch_models.neural.hybrid.closure_form import closure_model
 from torch_models.neural.evaluate import DEFAULT_PROBE, KEY_LIGHT, SCENES
 from torch_models.render.ball import Sun, shade_gbuffer
 from torch_models.render.envmap import EnvMap
@@ -151,7 +152,7 @@ def fit_material(model: NeuralModel, folder: Path, name: str, size: int, steps: 
         z, scale, seconds = saved["z"], saved["scale"], float(saved["seconds"])
     else:
         start = time.perf_counter()
-        z = fitting.fit_latents(model, mv.unique, steps, seed=0)
+        z = fit_latents(model, mv.unique, steps, seed=0)
         bounded = energy.fit_bounded(model, mv.unique, z, seed=0, steps=min(REFIT_STEPS, steps))
         seconds = time.perf_counter() - start
         z, scale = bounded.z.detach().contiguous(), bounded.check.energy_scale().detach().contiguous()
@@ -175,15 +176,15 @@ def oracle_latents(model: NeuralModel, m: Material, visible: torch.Tensor, args:
         saved = load_file(str(key))
         refit, seconds = saved["z"], float(saved["seconds"])
     else:
-        refit = fitting.fit_latents(model, vectors, args.oracle_steps, seed=1, start=m.z[visible],
-                                    per_vector=args.oracle_per_vector).detach().contiguous()
+        refit = fit_latents(model, vectors, args.oracle_steps, seed=1, start=m.z[visible],
+                            per_vector=args.oracle_per_vector).detach().contiguous()
         seconds = time.perf_counter() - start
         if key is not None:
             save_file({"z": refit, "seconds": torch.tensor(seconds)}, str(key))
     z = m.z.clone()
     z[visible] = refit
-    losses = {"shipped": fitting.held_out_loss(model, vectors, m.z[visible]),
-              "oracle": fitting.held_out_loss(model, vectors, refit)}
+    losses = {"shipped": held_out_loss(model, vectors, m.z[visible]),
+              "oracle": held_out_loss(model, vectors, refit)}
     return z, {"vectors": int(len(visible)), "seconds": seconds, "held_out_loss": losses}
 
 

@@ -51,7 +51,7 @@ from torch_models.neural import trained
 from torch_models.neural.energy import fit_bounded
 from torch_models.neural.mlp.energy import REFIT_STEPS
 from torch_models.neural.evaluate import BallSetup, Comparison, compare, render_neural, render_reference, side_by_side
-from torch_models.neural.fitting import fit_latents
+from torch_models.neural.fit.latents import fit_latents
 from torch_models.neural.model import NeuralModel
 from torch_models.render.camera import hit_sphere, primary_rays
 

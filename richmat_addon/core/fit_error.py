@@ -1,5 +1,5 @@
 """Reading a fit's error: the grade of the one number per material, and the heat colours of its
-per-texel map. The number is computed by the torch fit (``torch_models/neural/fit_error.py``)
+per-texel map. The number is computed by the torch fit (``torch_models/neural/fit/error.py``)
 and kept by ``neural_folder``; this module is torch- and bpy-free so a stock Blender reads it.
 
 The thresholds come from Table 1's fitted materials beside their ball FLIP

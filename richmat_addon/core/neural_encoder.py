@@ -5,7 +5,7 @@ encoder (torch_models/neural/networks.py ``Encoder``: parameters normalised by
 the schema's bounds, ReLU MLP, tanh to 6 latents) maps each deduplicated texel
 vector to its latent, and the latents are written at once in the neural folder
 format. The torch fit refines them when a backend is there; the record says
-``encoder_only`` until then. As the torch fit does (fitting.fitting_pool), GGX
+``encoder_only`` until then. As the torch fit does (fit.latents.fitting_pool), GGX
 alphas are raised to the decoder's training floor before encoding.
 """
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The preview shader of the hybrid decoder: its lobes as Cycles' own closures.
 
-The hybrid's head (``torch_models/neural/hybrid.py``) turns (latent, wi) into
+The hybrid's head (``torch_models/neural/hybrid/networks.py``) turns (latent, wi) into
 analytic lobes that Cycles implements itself, so Cycles lights them with its own
 light transport (every lamp, shadows, indirect light, its importance sampling):
 
@@ -20,7 +20,7 @@ shader gets its gates differs:
 
 * gates of both directions (16 inputs, the shipped decoder): each gate is
   replaced by its mean over directions drawn from its own lobe
-  (``torch_models/neural/closure_form.py``, rule ``"mean"``): ``gate_samples``
+  (``torch_models/neural/hybrid/closure_form.py``, rule ``"mean"``): ``gate_samples``
   draws per lobe and shading sample, hashed from the shading position, so
   Cycles' samples converge to that mean. bench/addon/closure_preview.py measures
   what the constant gates cost against the full decoder;

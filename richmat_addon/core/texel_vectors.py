@@ -8,7 +8,7 @@ representative: both lie in the same cell). A constant material stays one vector
 add-on's numpy encoder in a stock Blender dedupes as the torch fit does.
 
 Past ``FIT_BUDGET`` merged vectors the fit chooses representatives instead
-(``torch_models/neural/representatives.py``), so its cost stops growing with the texture.
+(``torch_models/neural/fit/representatives.py``), so its cost stops growing with the texture.
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from . import material_folder
 from .schema import PARAMS, bounds
 
 QUANT = 1.0 / 256.0
-# Vectors a fit fits at most: past it, representatives (torch_models/neural/representatives.py).
+# Vectors a fit fits at most: past it, representatives (torch_models/neural/fit/representatives.py).
 # The fit's 16 384-sample step then gives each of them 16 samples where a per-vector fit gives 4:
 # fewer, better-fitted representatives err less than more, noisier ones, and choosing them is
 # cheaper (bench/neural/fit_bounded.py charts the choice against 256-16 384 and the per-vector fit).

@@ -23,13 +23,14 @@ def pack_vectors(material: EnhancedMaterial, shape: tuple[int, int]) -> np.ndarr
 
 def latent_texture(material: EnhancedMaterial, shape: tuple[int, int], fit_steps: int = 0) -> np.ndarray:
     """(H, W, 6) latents: the shipped encoder per distinct texel vector, optionally refined by the fit."""
-    from ..neural import fitting, trained
+    from ..neural import trained
+    from ..neural.fit.latents import fit_latents
 
     vectors = pack_vectors(material, shape)
     unique, inverse = np.unique(vectors, axis=0, return_inverse=True)
     model = trained.load()
     if fit_steps:
-        z = fitting.fit_latents(model, unique, fit_steps, batch=4096)
+        z = fit_latents(model, unique, fit_steps, batch=4096)
     else:
         with torch.no_grad():
             z = model.encoder(torch.from_numpy(unique))

@@ -1,7 +1,7 @@
 """The training configuration every decoder kind shares.
 
 Each kind extends it with its own fields (``mlp.config.MlpConfig``,
-``hybrid_kind.HybridConfig``); ``kinds.load_config`` reads a file into the kind it names.
+``hybrid.config.HybridConfig``); ``kinds.load_config`` reads a file into the kind it names.
 """
 from __future__ import annotations
 

@@ -26,7 +26,7 @@ from .bsdf import NeuralBsdf
 from .quadrature import VIEW_COSINES, half_vector_nodes
 from .energy import fit_bounded
 from .furnace import BoundedFit
-from .fitting import fit_latents
+from .fit.latents import fit_latents
 from .model import NeuralModel
 
 DEFAULT_PROBE = Path(__file__).resolve().parents[1] / "data" / "studio_small_03_512.hdr"

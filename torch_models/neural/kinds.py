@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from .config import TrainConfig
-from .hybrid_kind import KIND as HYBRID
+from .hybrid.kind import KIND as HYBRID
 from .decoder_kind import DecoderKind
 from .mlp.kind import KIND as MLP
 from .model import NeuralModel

@@ -14,7 +14,7 @@ from torch import Tensor
 from richmat_addon.core.stage_clock import StageClock
 
 from ..data import make_batch
-from ..fitting import FIT_BATCH, FIT_BUFFER, deterministic, fitting_loss, fitting_pool
+from ..fit.latents import FIT_BATCH, FIT_BUFFER, deterministic, fitting_loss, fitting_pool
 from ..furnace import SCALE_STEP, BoundedFit, furnace
 from ..model import NeuralModel
 from ..quadrature import VIEW_COSINES, half_vector_albedo, half_vector_nodes, summed_albedo

@@ -24,10 +24,13 @@ from safetensors.torch import load_file, save_file
 from richmat_addon.core.stage_clock import StageClock
 from richmat_addon.core.texel_vectors import FIT_BUDGET, QUANT, TexelVectors, read_vectors
 
-from . import energy, fit_error, fitting, representatives
+from .. import energy
+from ..mlp.energy import REFIT_STEPS
+from ..model import NeuralModel
+from . import representatives
+from .error import vector_errors
+from .latents import fit_latents
 from .material_vectors import write_fit
-from .mlp.energy import REFIT_STEPS
-from .model import NeuralModel
 
 STATE_FILE = "fit_state.safetensors"  # an interrupted fit's latents and step, for resume
 Progress = Callable[[int, float], None]  # (steps done, loss)
@@ -92,8 +95,8 @@ def fit_vectors(model: NeuralModel, vectors: np.ndarray, settings: FitSettings, 
             progress(done + step + 1, loss)
 
     try:
-        z = fitting.fit_latents(model, vectors, max(0, settings.steps - done), seed=settings.seed + done,
-                                start=start, progress=step_done)
+        z = fit_latents(model, vectors, max(0, settings.steps - done), seed=settings.seed + done,
+                        start=start, progress=step_done)
     except KeyboardInterrupt:
         if latest["z"] is not None:
             tmp = state.with_name(state.name + ".tmp")
@@ -125,8 +128,7 @@ def fit_material(model: NeuralModel, material: Path, out: Path, settings: FitSet
         bounded = energy.fit_bounded(model, p.fitted.unique, z, seed=settings.seed, steps=refit_steps)
     with clock.stage("error"):
         stage("measuring the fit error")
-        errors = fit_error.vector_errors(model, p.measured, bounded.z, bounded.check.energy_scale(),
-                                         seed=settings.seed)
+        errors = vector_errors(model, p.measured, bounded.z, bounded.check.energy_scale(), seed=settings.seed)
     timed = clock.record(whole_process=False)
     for kind, parts in bounded.seconds.items():  # the energy check's own split: check, refit, recheck
         timed[kind].update({f"energy_{part}": value for part, value in parts.items()})

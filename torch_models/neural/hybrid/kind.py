@@ -1,4 +1,4 @@
-"""The hybrid's entry in ``kinds.KINDS``: analytic lobes gated by a small network (``hybrid``).
+"""The hybrid's entry in ``kinds.KINDS``: analytic lobes gated by a small network (``networks``).
 
 It is energy-bounded by construction and samples its own lobes, so it trains the
 decoder phase alone (annealing its lobes' alpha floor over the first ``anneal`` of it),
@@ -6,7 +6,6 @@ and its fits are checked off its head's slot weights, with nothing to repair.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import cast
 
 import numpy as np
@@ -16,28 +15,15 @@ from torch import Tensor
 from richmat_addon.core import neural_osl_hybrid
 from richmat_addon.core.stage_clock import StageClock
 
-from .config import TrainConfig
-from .data import view_directions
-from .furnace import BoundedFit, Furnace
-from .hybrid import HybridDecoder, LobeSampler
-from .decoder_kind import Phase, TrainingRun
-from .model import NeuralModel
-from .networks import DecoderNet
-from .quadrature import VIEW_COSINES
-
-
-@dataclass
-class HybridConfig(TrainConfig):
-    kind: str = HybridDecoder.kind
-    lobes: int = 3  # GGX lobes
-    head_width: int = 32  # the lobe head
-    gate_width: int = 32  # the gate network
-    gate_depth: int = 2
-    lobe_alpha_floor: tuple[float, float] = (0.05, 1e-3)  # the lobes' alpha floor, annealed from, to
-    unit_lobes: bool = False  # GGX lobes normalised to unit albedo (hybrid.HybridDecoder)
-    sheen: bool = False  # a unit-albedo LTC sheen lobe beside the GGX and diffuse lobes
-    anneal: float = 0.6  # share of the decoder phase over which the floor falls (geometrically)
-    view_gates: bool = False  # gates from (latent, view cosine) only: the lobes are exact closures
+from ..config import TrainConfig
+from ..data import view_directions
+from ..furnace import BoundedFit, Furnace
+from ..decoder_kind import Phase, TrainingRun
+from ..model import NeuralModel
+from ..networks import DecoderNet
+from ..quadrature import VIEW_COSINES
+from .config import HybridConfig
+from .networks import HybridDecoder, LobeSampler
 
 
 def annealed_floor(cfg: HybridConfig, step: int) -> float:

@@ -17,9 +17,9 @@ import math
 import numpy as np
 import torch
 
-from .data import make_batch
-from .fitting import fitting_pool
-from .model import NeuralModel
+from ..data import make_batch
+from ..model import NeuralModel
+from .latents import fitting_pool
 
 SAMPLE_BUDGET = 1 << 18  # direction samples per material: about a fifth of what a 300-step fit draws
 MIN_SAMPLES, MAX_SAMPLES = 8, 256  # per vector: the budget is shared, within these bounds

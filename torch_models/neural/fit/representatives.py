@@ -31,9 +31,9 @@ from richmat_addon.core.schema import bounds
 from richmat_addon.core.texel_vectors import TexelVectors, normalise, unique_rows
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
 
-from .data import make_batch
-from .fitting import fitting_pool
-from .model import NeuralModel
+from ..data import make_batch
+from ..model import NeuralModel
+from .latents import fitting_pool
 
 METRICS = ("encoder", "appearance", "plain")
 TRANSFERS = ("nearest", "residual")
@@ -41,7 +41,7 @@ PREMERGE = 8  # k-means runs on at most this many grid cells per representative
 LLOYD_ITERATIONS = 8
 METRIC_VECTORS, METRIC_DIRECTIONS = 256, 64  # the sample the metric's weights are measured on
 METRIC_DELTA = 1.0 / 32.0  # the finite difference, in normalised parameter units
-GREY_BASE = 0.5  # the diffuse base's colour in the measure, as in ``fit_error.py``
+GREY_BASE = 0.5  # the diffuse base's colour in the measure, as in ``error.py``
 CHUNK = 1 << 12  # points per distance block (a block of distances stays in cache)
 
 

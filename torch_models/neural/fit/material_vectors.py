@@ -12,7 +12,7 @@ from richmat_addon.core import neural_folder
 from richmat_addon.core.texel_vectors import QUANT, TexelVectors, read_vectors
 
 if TYPE_CHECKING:
-    from .furnace import BoundedFit
+    from ..furnace import BoundedFit
 
 MaterialVectors = TexelVectors
 __all__ = ["QUANT", "MaterialVectors", "read_vectors", "write_fit"]
@@ -21,7 +21,7 @@ __all__ = ["QUANT", "MaterialVectors", "read_vectors", "write_fit"]
 def write_fit(out: Path, mv: MaterialVectors, bounded: BoundedFit, decoder_sha256: str,
               fields: dict[str, Any], errors: np.ndarray | None = None) -> dict[str, Any]:
     """Write a fit's neural folder: latents at the material's texels, the energy scale where the
-    furnace repaired, the fit error per vector (``errors``, (K,), ``fit_error.py``) at the texels,
+    furnace repaired, the fit error per vector (``errors``, (K,), ``error.py``) at the texels,
     and the counts and furnace result beside ``fields``; returns its record."""
     z, check = bounded.z, bounded.check
     scale = check.energy_scale()

@@ -42,12 +42,12 @@ from torch import Tensor, nn
 
 from richmat_addon.core.schema import SHEEN_ROUGHNESS_MIN
 
-from ..brdf.frame import cos_theta, safe_normalize, sin2_theta
-from ..brdf import tables
-from ..brdf.ggx import ggx_pdf, ggx_sample
-from ..brdf.lobes import sheen_pdf_at, sheen_pdf_setup, sheen_sample
-from ..brdf.model import luminance
-from .networks import LATENT, direction_features, mlp
+from ...brdf.frame import cos_theta, safe_normalize, sin2_theta
+from ...brdf import tables
+from ...brdf.ggx import ggx_pdf, ggx_sample
+from ...brdf.lobes import sheen_pdf_at, sheen_pdf_setup, sheen_sample
+from ...brdf.model import luminance
+from ..networks import LATENT, direction_features, mlp
 
 LOG_ALPHA_MIN = math.log(1e-4)  # the lobe head's alphas span (1e-4, 1) before the floor
 INITIAL_ALPHAS = (0.02, 0.12, 0.45)  # lobe k starts near the k-th: a mirror-like, a glossy and a rough lobe
@@ -108,7 +108,7 @@ class HybridDecoder(nn.Module):
 
     def __init__(self, lobes: int, width: int, gate_width: int, gate_depth: int, alpha_floor: float,
                  unit_lobes: bool, sheen: bool, view_gates: bool = False) -> None:
-        """Sizes and options from the run's config (``hybrid_kind.HybridConfig``)."""
+        """Sizes and options from the run's config (``hybrid.config.HybridConfig``)."""
         super().__init__()
         self.lobes, self.width, self.gate_width, self.gate_depth = lobes, width, gate_width, gate_depth
         self.unit_lobes, self.sheen, self.view_gates = unit_lobes, sheen, view_gates
@@ -134,7 +134,7 @@ class HybridDecoder(nn.Module):
         """albedo(f_neu) + T <= 1 for every latent, so fitting needs no furnace. A unit lobe's albedo
         is E / table: <= 1 where the table (its bilinear read) is at least E everywhere, as the upper
         table is; decoders saved with Cycles' own table (which reads short between nodes) are not,
-        and their fits are refused (``hybrid_kind``)."""
+        and their fits are refused (``kind``)."""
         return not self.unit_lobes or bool((self.ggx_e >= tables.table("ggx_E_upper", self.ggx_e.device,
                                                                         self.ggx_e.dtype)).all())
 

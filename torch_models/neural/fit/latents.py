@@ -14,9 +14,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from .data import Batch, angular_floor, make_batch
-from .loss import decoder_loss
-from .model import NeuralModel
+from ..data import Batch, angular_floor, make_batch
+from ..loss import decoder_loss
+from ..model import NeuralModel
 
 FIT_BATCH = 16384  # (texel, wi, wo) samples per Adam step at least, shared by the vectors fitted together
 SAMPLES_PER_VECTOR = 4  # per Adam step and vector at least: a vector's samples do not shrink as textures grow

@@ -31,10 +31,10 @@ import math
 import torch
 from torch import Tensor, nn
 
-from ..brdf.ggx import ggx_sample
-from ..brdf.lobes import sheen_sample
-from .hybrid import HybridDecoder, Lobes
-from .model import NeuralModel
+from ...brdf.ggx import ggx_sample
+from ...brdf.lobes import sheen_sample
+from ..model import NeuralModel
+from .networks import HybridDecoder, Lobes
 
 RULES = ("dominant", "mean")
 

@@ -3,7 +3,7 @@
 A hybrid decoder draws every material through a 6D latent and two small shared networks,
 so what it cannot draw may be the lobe form's limit (K GGX lobes, diffuse, sheen, T) or the
 price of the shared networks and the latent space. Here each material gets its own head and
-its own view gates, both linear in the view features (``hybrid.view_features``), so the slot
+its own view gates, both linear in the view features (``networks.view_features``), so the slot
 weights still follow the view angle as a coat's Fresnel needs, and the gates read wi only:
 the result is exactly a set of closures, as a view-gated decoder's are. Fitted with the
 decoder's own loss, it measures how far the lobes themselves reach, which a decoder drawing
@@ -19,12 +19,12 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from . import fitting
+from ..fit.latents import FIT_BATCH, fit_latents
+from ..model import NeuralModel
 from .closure_form import ClosureForm
-from .hybrid import HybridDecoder, LobeSampler, view_features
-from .model import NeuralModel
+from .networks import HybridDecoder, LobeSampler, view_features
 
-VIEW_FEATURES = 3  # hybrid.view_features: cos, sin and the Schlick term of the view angle
+VIEW_FEATURES = 3  # networks.view_features: cos, sin and the Schlick term of the view angle
 
 
 class ViewLinear(nn.Module):
@@ -88,10 +88,10 @@ def start_from(model: NeuralModel, free: NeuralModel, z: Tensor, views: int = 16
 
 
 def fit_free(model: NeuralModel, vectors: np.ndarray, z: Tensor, steps: int, per_vector: int, seed: int = 0,
-             batch: int = fitting.FIT_BATCH) -> tuple[NeuralModel, Tensor]:
+             batch: int = FIT_BATCH) -> tuple[NeuralModel, Tensor]:
     """The free lobe form of ``model`` and its parameters for each vector, fitted with the decoder's
     loss, starting from the decoder's latents ``z`` of those vectors (its closure form there)."""
     free = free_model(model)
-    params = fitting.fit_latents(free, vectors, steps, batch, seed=seed, per_vector=per_vector,
-                                 start=start_from(model, free, z))
+    params = fit_latents(free, vectors, steps, batch, seed=seed, per_vector=per_vector,
+                         start=start_from(model, free, z))
     return free, params
