@@ -11,9 +11,10 @@ the first 8 hex digits of the report's decoder sha256, or "earlier decoder" /
 "previous decoder". A report with no provenance at all is accepted only where the
 citing line says "no provenance recorded".
 
-The numbers the documents quote are checked against their reports' keys: the table in
-tests/doc_numbers.py, one row per number (and a row for each number measured once by hand,
-which the document must say).
+The numbers a reader acts on are checked against their reports' keys: the table in
+tests/doc_numbers.py, one row per number; its docstring says which numbers are pinned (the
+README's, the design notes' tables, a short list of headline figures in prose), and a test here
+holds the table to it.
 """
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ from typing import Any
 
 import pytest
 
-from .doc_numbers import ROWS, DocNumber
+from .doc_numbers import HEADLINE_PROSE, ROWS, DocNumber
 
 REPO = Path(__file__).resolve().parents[1]
 REPORTS = REPO / "docs" / "reports"
@@ -163,7 +164,6 @@ def test_link_parsing(tmp_path):
 # The numbers: each quoted number equals its report's key at the quote's rounding.
 BRACED = re.compile(r"\{([^{}]+)\}")
 REDUCE = {"min": min, "max": max, "mean": statistics.fmean}
-BY_HAND = "by hand"
 
 
 def collapsed(text: str) -> str:
@@ -187,17 +187,13 @@ def lookup(report: Any, key: str) -> float:
     return math.sqrt(value) if op == "sqrt" else float(value)
 
 
-def number_problems(row: DocNumber, text: str, report: Any | None) -> list[str]:
-    """What is wrong with ``row`` against the document's ``text`` and its ``report`` (None: by hand)."""
+def number_problems(row: DocNumber, text: str, report: Any) -> list[str]:
+    """What is wrong with ``row`` against the document's ``text`` and its ``report``."""
     where = f"{row.doc}: {row.quote!r}"
     out = []
     if collapsed(BRACED.sub(r"\1", row.quote)) not in collapsed(text):
         out.append(f"{where}: not in the document (a changed number must change in its report too)")
     braced = BRACED.findall(row.quote)
-    if row.report is None:
-        if braced or BY_HAND not in row.quote:
-            out.append(f"{where}: a by-hand row quotes no braced number and says {BY_HAND!r}")
-        return out
     if len(braced) != 1:
         return out + [f"{where}: quotes {len(braced)} braced numbers, not one"]
     quoted = braced[0].replace(" ", "").replace(",", "")
@@ -210,8 +206,8 @@ def number_problems(row: DocNumber, text: str, report: Any | None) -> list[str]:
 
 def test_quoted_numbers_match_their_reports():
     texts = {doc: (REPO / doc).read_text() for doc in {r.doc for r in ROWS}}
-    reports = {r.report: json.loads((REPO / r.report).read_text()) for r in ROWS if r.report}
-    bad = [p for r in ROWS for p in number_problems(r, texts[r.doc], reports.get(r.report))]
+    reports = {r.report: json.loads((REPO / r.report).read_text()) for r in ROWS}
+    bad = [p for r in ROWS for p in number_problems(r, texts[r.doc], reports[r.report])]
     assert not bad, "numbers that drifted from their reports:\n" + "\n".join(bad)
 
 
@@ -254,7 +250,7 @@ def test_a_drifted_number_fails(doc, quote, key, scale, drifted):
 
 def test_a_drifted_report_fails_a_real_row():
     """The README's agreement number, against its report re-run to a worse worst case."""
-    row = next(r for r in ROWS if r.report and r.report.endswith("/agreement.json") and r.key == "worst_flip")
+    row = next(r for r in ROWS if r.report.endswith("/agreement.json") and r.key == "worst_flip")
     report = json.loads((REPO / row.report).read_text())
     text = (REPO / row.doc).read_text()
     assert not number_problems(row, text, report)
@@ -262,9 +258,37 @@ def test_a_drifted_report_fails_a_real_row():
     assert number_problems(row, text, report) == [f"{row.doc}: {row.quote!r}: {row.report} worst_flip gives 0.014"]
 
 
-def test_by_hand_rows_say_so():
-    assert not number_problems(DocNumber("n.md", "5 s (measured by hand)", None), "took 5 s (measured by hand).", None)
-    assert number_problems(DocNumber("n.md", "5 s", None), "took 5 s.", None)
+# Which numbers are pinned: the README's, the design notes' tables and HEADLINE_PROSE; not prose.
+HEADLINE_PROSE_AT_MOST = 12
+
+
+def in_a_table(quote: str, text: str) -> bool:
+    """Whether ``quote`` lies inside one Markdown table row (a line starting with "|") of ``text``."""
+    said = collapsed(BRACED.sub(r"\1", quote))
+    return any(line.lstrip().startswith("|") and said in collapsed(line) for line in text.splitlines())
+
+
+def prose_rows(rows: tuple[DocNumber, ...], texts: dict[str, str]) -> list[DocNumber]:
+    """The rows that pin a design note's prose rather than the README or a table."""
+    return [r for r in rows if r.doc != "README.md" and not in_a_table(r.quote, texts[r.doc])]
+
+
+def test_rows_pin_the_readme_tables_and_headlines_only():
+    """Rewording a note's prose must not break a test: prose rows are the listed headlines only."""
+    texts = {doc: (REPO / doc).read_text() for doc in {r.doc for r in ROWS}}
+    prose = prose_rows(ROWS, texts)
+    unlisted = [f"{r.doc}: {r.quote!r}" for r in prose if r.quote not in HEADLINE_PROSE]
+    unused = sorted(set(HEADLINE_PROSE) - {r.quote for r in prose})
+    assert not unlisted, "rows pinning prose (drop them, or list a headline in HEADLINE_PROSE):\n" + "\n".join(unlisted)
+    assert not unused, f"HEADLINE_PROSE names no prose row: {unused}"
+    assert len(HEADLINE_PROSE) <= HEADLINE_PROSE_AT_MOST, len(HEADLINE_PROSE)
+
+
+def test_a_prose_row_is_found():
+    text = "| Type | FLIP |\n|---|---|\n| 0 haze | 0.035 |\nThe fit takes 50.8 s.\n"
+    rows = (DocNumber("n.md", "| 0 haze | {0.035} |", "r.json"), DocNumber("n.md", "takes {50.8} s", "r.json"),
+            DocNumber("README.md", "takes {50.8} s", "r.json"))
+    assert prose_rows(rows, {"n.md": text, "README.md": text}) == [rows[1]]
 
 
 # Every bench and every report is cited: what nothing current cites goes to docs/history.md.
