@@ -44,7 +44,7 @@ def prepare(args: argparse.Namespace) -> None:
     from richmat_addon.blender import mesh_maps
     from richmat_addon.core import material_folder
     from richmat_addon.core.enhance import enhance, is_metallic
-    from richmat_addon.core.enhancement_plan import material_type
+    from torch_models.assets.enhancement_plan import material_type
     from richmat_addon.core.enhancement_types import DUST_TYPES
 
     from batch import bl_materials, bl_scene
