@@ -9,7 +9,6 @@ import pytest
 import torch
 
 from richmat_addon.core import material_folder, neural_folder
-from richmat_addon.core.builtin import chipped_paint, sphere_texel_geometry
 from richmat_addon.core.enhance import enhance
 from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.maps import ParamMap, PbrInputs
@@ -17,6 +16,7 @@ from richmat_addon.core.texel_vectors import normalise, texel_matrix
 from torch_models.cli import main
 from torch_models.neural import energy, fit_error, fitting, furnace, loss, material_vectors, quadrature, trained
 from tests.test_neural_training import TINY
+from torch_models.demo_material import chipped_paint, sphere_texel_geometry
 
 
 @pytest.fixture(scope="module")

@@ -7,11 +7,11 @@ from typing import Callable
 import numpy as np
 import torch
 
-from richmat_addon.core.builtin import sphere_uv
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
 from richmat_addon.core.preview import PreviewScene
 
 from .brdf.model import LayeredBsdf
+from .demo_material import sphere_uv
 from .neural.bsdf import NeuralBsdf
 from .neural.model import NeuralModel
 from .render.ball import BsdfAt
