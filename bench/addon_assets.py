@@ -64,7 +64,7 @@ from bl_ext.user_default.richmat.blender.cycles_builder import enable_osl
 from bl_ext.user_default.richmat.core import neural_folder
 # The preview scene's setup is not part of the extension (no operator uses it): from support/.
 from support import blender_preview_scene
-from richmat_addon.core.preview import PreviewScene
+from torch_models.render.preview_scene import PreviewScene
 
 OUT, RENDERS = Path(OUT), Path(RENDERS)
 RENDERS.mkdir(parents=True, exist_ok=True)

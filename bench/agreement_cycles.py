@@ -22,7 +22,7 @@ from support.agreement_cases import Case
 from support.osl_script import script_material
 from richmat_addon.blender import cycles_builder
 from support import blender_preview_scene
-from richmat_addon.core.preview import PreviewScene
+from torch_models.render.preview_scene import PreviewScene
 
 
 def main(job_path: Path) -> None:

@@ -40,7 +40,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from support.agreement_cases import Case
-from richmat_addon.core.preview import PreviewScene
+from torch_models.render.preview_scene import PreviewScene
 
 if TYPE_CHECKING:
     import bpy

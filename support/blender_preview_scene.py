@@ -1,4 +1,4 @@
-"""The preview-ball scene in Cycles, built from ``core.preview.PreviewScene``.
+"""The preview-ball scene in Cycles, built from ``torch_models.render.preview_scene.PreviewScene``.
 
 The tests and benches build it to compare Cycles with the torch renderer and the preview shaders;
 no operator of the add-on does, so it lives here, out of the extension.
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import bpy
 
-from richmat_addon.core.preview import PreviewScene
+from torch_models.render.preview_scene import PreviewScene
 
 BALL = "richmat_preview_ball"
 MESH_SWITCH = "mesh ball"

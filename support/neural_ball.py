@@ -13,8 +13,8 @@ import bpy
 import numpy as np
 
 from support import blender_preview_scene
-from richmat_addon.core.preview import PreviewScene
 from support.osl_script import script_material
+from torch_models.render.preview_scene import PreviewScene
 
 
 def neural_ball(source: str, probe: Path, resolution: int, spp: int

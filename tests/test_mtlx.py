@@ -174,7 +174,7 @@ def test_genosl_shader_compiles_and_renders_in_cycles(blender_run, textured, tmp
         import bpy
         from richmat_addon.blender import cycles_builder
         from support import blender_preview_scene
-        from richmat_addon.core.preview import PreviewScene
+        from torch_models.render.preview_scene import PreviewScene
         from support.osl_script import script_material
         from tests.test_osl import TYPE5, make_material
         folder = Path({str(tmp_path)!r})

@@ -11,13 +11,13 @@ import pytest
 import torch
 
 from richmat_addon.core.folder_io import read_exr
-from richmat_addon.core.preview import PreviewScene
 from richmat_addon.core.schema import default_vector
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
 from torch_models.render.ball import render_ball, shade_gbuffer
 from torch_models.render.camera import filter_offsets, primary_rays
 from torch_models.render.envmap import EnvMap, read_probe
 from torch_models.render.flip import mean_flip
+from torch_models.render.preview_scene import PreviewScene
 from torch_models.render.tonemap import agx
 
 REPO = Path(__file__).resolve().parents[1]
@@ -106,7 +106,7 @@ def test_camera_and_probe_conventions_match_cycles(blender_run, tmp_path: Path, 
     blender_run(f"""
         import bpy
         from pathlib import Path
-        from richmat_addon.core.preview import PreviewScene
+        from torch_models.render.preview_scene import PreviewScene
         from support import blender_preview_scene
         bpy.ops.wm.read_factory_settings(use_empty=True)
         scene = bpy.context.scene
@@ -134,7 +134,7 @@ def test_mesh_ball_renders_like_the_point_ball(blender_run, tmp_path: Path) -> N
     vertices = blender_run(f"""
         import bpy
         from pathlib import Path
-        from richmat_addon.core.preview import PreviewScene
+        from torch_models.render.preview_scene import PreviewScene
         from support import blender_preview_scene
         bpy.ops.wm.read_factory_settings(use_empty=True)
         scene = bpy.context.scene
@@ -190,7 +190,7 @@ def test_ball_agrees_with_cycles(blender_run, tmp_path: Path, env: EnvMap) -> No
         import bpy, json
         from pathlib import Path
         from support.agreement_cases import Case
-        from richmat_addon.core.preview import PreviewScene
+        from torch_models.render.preview_scene import PreviewScene
         from richmat_addon.blender import cycles_builder
         from support import blender_preview_scene
         case = Case(**json.loads({json.dumps(asdict(case))!r}))
