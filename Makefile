@@ -42,7 +42,7 @@ test: $(STAMP)
 demo: $(STAMP)
 	$(PY) -m torch_models demo --out demo_out $(if $(FULL),--full)
 
-# The installable Blender extension: the manifest, the add-on modules richmat_addon/__init__.py imports
+# The installable Blender extension: the manifest, the whole richmat_addon package
 # (tools/extension_files.py) and the shipped decoder, built by Blender's own extension CLI (shipped
 # inside the bpy wheel: tools/blender_ext.py finds it when it runs) into dist/.
 .PHONY: extension

@@ -20,7 +20,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from richmat_addon.core.gltf_container import GltfError
+from torch_models.assets.gltf_container import GltfError
 
 from . import gltf_import
 

@@ -34,7 +34,7 @@ from batch.bl_scene import BadAsset  # noqa: E402
 from batch.options import (  # noqa: E402
     DEFAULT_DENOISE_PREFILTER, DEFAULT_DENOISE_QUALITY, DEFAULT_GRAPH, DEFAULT_MAX_TRIANGLES, DENOISE_PREFILTERS,
     DENOISE_QUALITIES, DEVICES, GRAPHS)
-from richmat_addon.core.stage_clock import StageClock  # noqa: E402
+from torch_models.stage_clock import StageClock  # noqa: E402
 
 Built = TypeVar("Built")
 BAD_INPUT_EXIT = 3  # batch.pipeline.BAD_INPUT_EXIT (not imported: the orchestrator side stays bpy-free)
@@ -44,7 +44,7 @@ def prepare(args: argparse.Namespace) -> None:
     from richmat_addon.blender import mesh_maps
     from richmat_addon.core import material_folder
     from richmat_addon.core.enhance import enhance, is_metallic
-    from richmat_addon.core.enhancement_plan import material_type
+    from torch_models.assets.enhancement_plan import material_type
     from richmat_addon.core.enhancement_types import DUST_TYPES
 
     from batch import bl_materials, bl_scene

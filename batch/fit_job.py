@@ -32,7 +32,7 @@ def main(argv: list[str]) -> int:
     import torch
 
     from richmat_addon.core import material_folder
-    from richmat_addon.core.stage_clock import StageClock
+    from torch_models.stage_clock import StageClock
     from torch_models.neural import trained
     from torch_models.neural.fit.material import FitSettings, fit_material
 

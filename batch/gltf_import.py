@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from richmat_addon.core.gltf_container import MissingFile, checked, glb_bytes, parse_file, resolve_uri
+from torch_models.assets.gltf_container import MissingFile, checked, glb_bytes, parse_file, resolve_uri
 
 BASISU = "KHR_texture_basisu"
 TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN = 4, 5, 6  # primitive modes that draw triangles

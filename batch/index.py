@@ -1,4 +1,4 @@
-"""The output's dataset index (``core/dataset_index.py``), made from the published assets' manifests.
+"""The output's dataset index (``torch_models/assets/dataset_index.py``), made from the published assets' manifests.
 
 The manifests are the truth about what is published, so the index is never
 updated in place: every run's end (and ``--rebuild-index``) lists them again and
@@ -9,7 +9,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from richmat_addon.core import dataset_index, neural_folder
+from richmat_addon.core import neural_folder
+from torch_models.assets import dataset_index
 
 from .publish import PARTIAL, read_manifest
 

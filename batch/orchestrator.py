@@ -16,7 +16,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import Sequence
 
-from richmat_addon.core import dataset_index
+from torch_models.assets import dataset_index
 
 from . import index, options, publish, runner
 from .assets import Asset, Ignored, asset_id, scan

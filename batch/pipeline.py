@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from richmat_addon.core import captions
-from richmat_addon.core.enhancement_plan import asset_type
+from torch_models.assets.enhancement_plan import asset_type
 
 from . import publish, runner
 from .assets import Asset

@@ -12,9 +12,9 @@ from typing import Sequence
 import bpy
 import numpy as np
 
-from richmat_addon.blender import preview_scene
-from richmat_addon.core.preview import PreviewScene
+from support import blender_preview_scene
 from support.osl_script import script_material
+from torch_models.render.preview_scene import PreviewScene
 
 
 def neural_ball(source: str, probe: Path, resolution: int, spp: int
@@ -24,7 +24,7 @@ def neural_ball(source: str, probe: Path, resolution: int, spp: int
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
     material = script_material("neural", source, output="BSDF")
-    preview_scene.setup(scene, PreviewScene(resolution=resolution), probe, material, spp)
+    blender_preview_scene.setup(scene, PreviewScene(resolution=resolution), probe, material, spp)
     scene.cycles.shading_system = True
     return scene, material.node_tree.nodes["Script"]
 

@@ -21,7 +21,8 @@ from pathlib import Path
 import bpy
 from mathutils import Vector
 
-from richmat_addon.blender import cycles_builder, preview_scene
+from richmat_addon.blender import cycles_builder
+from support import blender_preview_scene
 from richmat_addon.core import graph
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
 from richmat_addon.core.schema import PARAMS
@@ -60,7 +61,7 @@ def main(job_path: Path) -> None:
     rows = math.ceil(len(materials) / COLUMNS)
     centres = []
     for k, mat in enumerate(materials):
-        obj = preview_scene._ball_object(1.0, mat)
+        obj = blender_preview_scene._ball_object(1.0, mat)
         obj.location = ((k % COLUMNS) * SPACING, 0.0, -(k // COLUMNS) * SPACING)
         obj.visible_shadow = False  # spheres must not shade their neighbours
         scene.collection.objects.link(obj)
@@ -94,7 +95,7 @@ def main(job_path: Path) -> None:
     for k, direction in enumerate(job["suns"]):
         # A sun shines along its local -z: point that axis away from ``direction``.
         sun.rotation_euler = Vector(direction).to_track_quat("Z", "Y").to_euler()
-        preview_scene.render_exr(scene, out / f"sun_{k}.exr")
+        blender_preview_scene.render_exr(scene, out / f"sun_{k}.exr")
     cx = [(c.x - cam.location.x) / cam_data.ortho_scale * width + width / 2 for c in centres]
     cy = [height / 2 - (c.z - cam.location.z) / cam_data.ortho_scale * width for c in centres]
     (out / "layout.json").write_text(json.dumps({"centres_px": list(zip(cx, cy)), "radius_px": width /

@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from richmat_addon.core.gltf_container import glb_bytes
 from support.blender_child import run_blender
 from tests.test_gltf_io import _Builder, base_color_image, cube_arrays, orm_image, png
+from torch_models.assets.gltf_container import glb_bytes
 
 # The 12-byte KTX2 identifier and a little body: enough for anything that sniffs the format.
 KTX2_BYTES = b"\xabKTX 20\xbb\r\n\x1a\n" + bytes(68)

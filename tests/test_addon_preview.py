@@ -58,7 +58,7 @@ def cycles_ball(blender_run, weights: Path, latent: list[float], base: list[floa
     out = blender_run(f'''
 import numpy as np
 from pathlib import Path
-from richmat_addon.blender import preview_scene
+from support import blender_preview_scene
 from richmat_addon.core.neural_osl import neural_osl_source
 from richmat_addon.core.tensor_file import read_safetensors
 from support.neural_ball import neural_ball, read_exr, set_material
@@ -75,9 +75,9 @@ if sun is not None:
     for link in list(background.inputs["Color"].links):
         scene.world.node_tree.links.remove(link)
     background.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-    preview_scene.add_sun(scene, *sun)
+    blender_preview_scene.add_sun(scene, *sun)
 path = Path({str(folder / "cycles.exr")!r})
-preview_scene.render_exr(scene, path)
+blender_preview_scene.render_exr(scene, path)
 np.save({str(folder / "cycles.npy")!r}, read_exr(path))
 ''')
     assert out is None

@@ -17,11 +17,11 @@ from PIL import Image
 
 from richmat_addon.core import material_folder
 from richmat_addon.core.folder_io import read_exr
-from richmat_addon.core.gltf_materials import read_materials
 from torch_models.brdf.model import LayeredBsdf
 from torch_models.cli import main
 from torch_models.cli_enhance import pil_decode
 from tests.test_gltf_io import _Builder, cube_arrays, glb_bytes
+from torch_models.assets.gltf_materials import read_materials
 
 
 def encode(img: Image.Image, fmt: str = "PNG") -> bytes:

@@ -10,7 +10,7 @@ from batch.assets import collect
 from richmat_addon.core.captions import article, caption, colour_name, enhancement_keywords, readable
 from richmat_addon.core.colour import gamma_to_linear, linear_to_gamma, srgb_to_linear
 from richmat_addon.core.enhancement_types import TYPE_MIX
-from richmat_addon.core.enhancement_plan import asset_type, material_type
+from torch_models.assets.enhancement_plan import asset_type, material_type
 
 
 def test_asset_types_follow_the_papers_mix_and_depend_on_the_seed() -> None:

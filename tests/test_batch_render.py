@@ -22,9 +22,10 @@ from PIL import Image
 
 from batch import ledger
 from batch.options import DEFAULT_DECODER, DEFAULT_DENOISE_PREFILTER, DEFAULT_DENOISE_QUALITY
-from richmat_addon.core import dataset_index, neural_folder
+from richmat_addon.core import neural_folder
 from richmat_addon.core.enhancement_types import TYPES
 from support.batch_inputs import TETRA_STL, make_inputs
+from torch_models.assets import dataset_index
 from torch_models.dataset import BatchDataset
 
 REPO = Path(__file__).resolve().parents[1]

@@ -16,9 +16,9 @@ import pytest
 
 from richmat_addon.core import material_folder, schema
 from richmat_addon.core.folder_io import read_exr
-from richmat_addon.core.gltf_materials import read_materials
 from richmat_addon.core.mtlx import read_back
 from tests.test_gltf_io import pil_decode, write_test_glb
+from torch_models.assets.gltf_materials import read_materials
 from torch_models.cli import main
 
 REPO = Path(__file__).resolve().parents[1]

@@ -14,9 +14,10 @@ from torch.utils.data import DataLoader
 from batch import index, publish
 from batch.orchestrator import main, run
 from batch.pipeline import Commands
-from richmat_addon.core import dataset_index, neural_folder
+from richmat_addon.core import neural_folder
 from richmat_addon.core.folder_io import FormatError
 from tests.test_batch_orchestrator import args_for, decoder, fakes, make_assets  # noqa: F401 (fixtures)
+from torch_models.assets import dataset_index
 from torch_models.dataset import BatchDataset
 
 DATA = Path(__file__).parent / "data" / "generator_batch"

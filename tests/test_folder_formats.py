@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from richmat_addon.core import material_folder, neural_folder
-from richmat_addon.core.builtin import chipped_paint, sphere_texel_geometry
 from richmat_addon.core.enhance import enhance
 from richmat_addon.core.folder_io import FormatError
 from torch_models.cli import main
 from tests import test_neural_fit
+from torch_models.demo_material import chipped_paint, sphere_texel_geometry
 
 REPO = Path(__file__).resolve().parents[1]
 SOURCES = ("richmat_addon", "torch_models", "batch", "bench", "tests")

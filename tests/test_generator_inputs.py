@@ -13,7 +13,6 @@ from PIL import Image
 from richmat_addon.core import neural_folder
 from richmat_addon.core.colour import srgb_to_linear
 from richmat_addon.core.folder_io import read_exr
-from richmat_addon.core.gltf_container import glb_bytes
 from torch_models.cli import main
 from torch_models.cli_generate import PREVIEW_FRAMES, PREVIEW_SIZE, RUN_RECORD
 from torch_models.generator import generate as gen
@@ -21,6 +20,7 @@ from torch_models.generator.mesh_input import load_mesh
 from torch_models.generator.views import orbit_cameras
 from tests.test_generator_generate import checkpoint  # noqa: F401  (tiny trained generator, module fixture)
 from tests.test_gltf_io import _Builder, png
+from torch_models.assets.gltf_container import glb_bytes
 
 torch.set_num_threads(1)
 # a base colour texture wider than tall, red on the left and blue on the right: its mean is purple

@@ -17,11 +17,11 @@ import pytest
 from PIL import Image
 
 from richmat_addon.core.colour import srgb_to_linear
-from richmat_addon.core.gltf_container import GltfError, glb_bytes, load_gltf
-from richmat_addon.core.gltf_materials import read_materials
-from richmat_addon.core.gltf_mesh import read_geometry
 from richmat_addon.core import uv_raster
 from richmat_addon.core.uv_raster import rasterize
+from torch_models.assets.gltf_container import GltfError, glb_bytes, load_gltf
+from torch_models.assets.gltf_materials import read_materials
+from torch_models.assets.gltf_mesh import read_geometry
 
 
 def pil_decode(data: bytes, mime: str) -> np.ndarray:

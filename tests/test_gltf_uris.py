@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from batch.gltf_import import checked_files, prepare
-from richmat_addon.core import gltf_container
-from richmat_addon.core.gltf_container import GltfError, load_gltf, parse_file
-from richmat_addon.core.gltf_materials import read_materials
 from tests.test_gltf_io import base_color_image, pil_decode, png
+from torch_models.assets import gltf_container
+from torch_models.assets.gltf_container import GltfError, load_gltf, parse_file
+from torch_models.assets.gltf_materials import read_materials
 
 Craft = Callable[[Path], str]  # makes what the URI points at inside tmp_path; returns the URI
 

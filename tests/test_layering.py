@@ -1,9 +1,11 @@
 """The import graph of the repository's Python, read from the source (every import, also inside functions):
 no import cycles, no arrow from a lower floor to a higher one, and tests/ and bench/ never import each other
-(what both need lives in support/)."""
+(what both need lives in support/); and what the farm's Blender side imports from torch_models imports without torch."""
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -12,12 +14,15 @@ REPO = Path(__file__).resolve().parents[1]
 PACKAGES = ("richmat_addon", "torch_models", "batch", "tools", "support", "bench", "tests")
 # What each part may import besides itself: the add-on's core is the lowest floor (no bpy, no torch), the
 # torch backend never reaches the bpy side, the farm sits on both, and the shared test support sits under
-# the benches and the tests, which are two rooms that do not see each other.
+# the benches and the tests, which are two rooms that do not see each other. The formats and the clock the
+# farm's Blender side shares with the backend sit on the core alone, below the rest of torch_models.
 MAY_IMPORT = {
     "richmat_addon.core": (),
     "richmat_addon.blender": ("richmat_addon.core",),
     "richmat_addon": ("richmat_addon.core", "richmat_addon.blender"),
-    "torch_models": ("richmat_addon.core",),
+    "torch_models.assets": ("richmat_addon.core",),
+    "torch_models.stage_clock": ("richmat_addon.core",),
+    "torch_models": ("richmat_addon.core", "torch_models.assets", "torch_models.stage_clock"),
     "batch": ("richmat_addon", "torch_models"),
     "tools": ("richmat_addon", "torch_models"),  # the scripts that regenerate shipped tables
     "support": ("richmat_addon", "torch_models", "batch"),
@@ -134,6 +139,11 @@ def test_the_reader_sees_what_it_checks(graph: dict[str, set[str]]) -> None:
                "tests.c": {"bench.d"}, "bench.d": {"support.e"}, "support.e": set()}
     assert arrows_up(planted) == [("richmat_addon.core.a", "torch_models.b"), ("tests.c", "bench.d")]
     assert _part("richmat_addon.core.enhance") == "richmat_addon.core" and _part("bench.common") == "bench"
+    shared = {"torch_models.assets.a": {"torch_models.render.b", "richmat_addon.core.c"},
+              "torch_models.stage_clock": {"torch_models.assets.a"}, "torch_models.render.b": {"torch_models.assets.a"},
+              "richmat_addon.core.c": set()}
+    assert arrows_up(shared) == [("torch_models.assets.a", "torch_models.render.b"),
+                                 ("torch_models.stage_clock", "torch_models.assets.a")]
 
 
 # The hybrid decoder's room: the shipped decoder kind, which must not need the paper's MLP baseline's.
@@ -160,3 +170,28 @@ def test_the_hybrid_never_imports_the_mlp_baseline(graph: dict[str, set[str]]) -
     assert [m for m in sorted(reached(graph, hybrid)) if m.startswith(BASELINE_ROOM)] == []
     assert BASELINE_ROOM + ".kind" in reached(graph, ("torch_models.neural.kinds",))
     assert reached({"a": {"b"}, "b": {"c"}, "c": set(), "d": {"a"}}, ("a",)) == {"a", "b", "c"}
+
+
+# What the farm's Blender side (a stock Blender: no torch) imports from torch_models, and the preview scene the
+# tests' and benches' Blender children build Cycles' ball from.
+TORCH_FREE = (*sorted(f"torch_models.assets.{p.stem}" for p in (REPO / "torch_models" / "assets").glob("*.py")
+                      if p.stem != "__init__"), "torch_models.stage_clock", "torch_models.render.preview_scene")
+
+
+def test_the_modules_the_blender_side_imports_need_no_torch() -> None:
+    """Each imports in a Python where ``import torch`` fails, as in a stock Blender; a module that needs torch
+    does not (so the block is real)."""
+    script = f"""
+import importlib, sys
+sys.modules["torch"] = None  # import torch now raises ImportError
+for name in {TORCH_FREE!r}:
+    importlib.import_module(name)
+try:
+    importlib.import_module("torch_models.render.ball")
+except ImportError:
+    print("blocked")
+"""
+    out = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["blocked"]
+    assert "torch_models.assets.gltf_container" in TORCH_FREE  # the glob found the package

@@ -172,8 +172,9 @@ def test_genosl_shader_compiles_and_renders_in_cycles(blender_run, textured, tmp
         import json
         from pathlib import Path
         import bpy
-        from richmat_addon.blender import cycles_builder, preview_scene
-        from richmat_addon.core.preview import PreviewScene
+        from richmat_addon.blender import cycles_builder
+        from support import blender_preview_scene
+        from torch_models.render.preview_scene import PreviewScene
         from support.osl_script import script_material
         from tests.test_osl import TYPE5, make_material
         folder = Path({str(tmp_path)!r})
@@ -192,8 +193,8 @@ def test_genosl_shader_compiles_and_renders_in_cycles(blender_run, textured, tmp
                 material = cycles_builder.build_material(make_material("type5_constant", TYPE5), {{}})
             else:
                 material = script_material(which, (folder / f"{{which}}.osl").read_text())
-            preview_scene.setup(scene, PreviewScene(resolution=32), Path({str(probe)!r}), material, 64)
-            preview_scene.render_exr(scene, folder / f"{{which}}.exr")
+            blender_preview_scene.setup(scene, PreviewScene(resolution=32), Path({str(probe)!r}), material, 64)
+            blender_preview_scene.render_exr(scene, folder / f"{{which}}.exr")
         print("RESULT " + json.dumps(compiled))
     """)
     assert "'mx_funcs.h' file not found" in result["raw"]

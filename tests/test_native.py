@@ -96,7 +96,7 @@ def test_the_fit_nodes_compute_the_core_fits(blender_run):
 
 
 PER_TYPE = BLENDER_PRELUDE + """
-from richmat_addon.blender import preview_scene as ball_scene
+from support import blender_preview_scene as ball_scene
 
 def trees(material):
     found, stack = [], [material.node_tree]

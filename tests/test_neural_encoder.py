@@ -7,12 +7,12 @@ import numpy as np
 import torch
 
 from richmat_addon.core import material_folder, neural_folder
-from richmat_addon.core.builtin import chipped_paint, sphere_texel_geometry
 from richmat_addon.core.enhance import enhance
 from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.neural_encoder import GGX_ALPHAS, Encoder, encode_material
 from richmat_addon.core.schema import bounds
 from richmat_addon.core.texel_vectors import read_vectors
+from torch_models.demo_material import chipped_paint, sphere_texel_geometry
 from torch_models.neural import data, trained
 from torch_models.neural.fit import material_vectors
 from torch_models.neural.fit.latents import fitting_pool

@@ -9,7 +9,6 @@ import pytest
 import torch
 
 from richmat_addon.core import material_folder, neural_folder
-from richmat_addon.core.builtin import chipped_paint, sphere_texel_geometry
 from richmat_addon.core.enhance import enhance
 from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.maps import ParamMap, PbrInputs
@@ -19,6 +18,7 @@ from torch_models.neural import energy, furnace, loss, quadrature, trained
 from torch_models.neural.fit import latents, material_vectors
 from torch_models.neural.fit.error import vector_errors
 from tests.test_neural_training import TINY
+from torch_models.demo_material import chipped_paint, sphere_texel_geometry
 
 
 @pytest.fixture(scope="module")

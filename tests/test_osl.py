@@ -61,7 +61,7 @@ def test_pruned_graph_gives_shorter_shader_without_disabled_lobes():
 
 
 # Child-process code shared by the Cycles tests: load materials saved by save_materials,
-# set up the preview ball (core.preview) and render it tiny on the CPU.
+# set up the preview ball (torch_models.render.preview_scene) and render it tiny on the CPU.
 BLENDER_PRELUDE = """
 import json, math, time
 import numpy as np
@@ -71,7 +71,7 @@ prefer_blender_bundled_modules()
 from richmat_addon.blender import cycles_builder
 from richmat_addon.core import graph, osl
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
-from richmat_addon.core.preview import PreviewScene
+from torch_models.render.preview_scene import PreviewScene
 
 def load_material(npz, name):
     data = np.load(npz)

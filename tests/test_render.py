@@ -11,13 +11,13 @@ import pytest
 import torch
 
 from richmat_addon.core.folder_io import read_exr
-from richmat_addon.core.preview import PreviewScene
 from richmat_addon.core.schema import default_vector
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
 from torch_models.render.ball import render_ball, shade_gbuffer
 from torch_models.render.camera import filter_offsets, primary_rays
 from torch_models.render.envmap import EnvMap, read_probe
 from torch_models.render.flip import mean_flip
+from torch_models.render.preview_scene import PreviewScene
 from torch_models.render.tonemap import agx
 
 REPO = Path(__file__).resolve().parents[1]
@@ -106,13 +106,13 @@ def test_camera_and_probe_conventions_match_cycles(blender_run, tmp_path: Path, 
     blender_run(f"""
         import bpy
         from pathlib import Path
-        from richmat_addon.core.preview import PreviewScene
-        from richmat_addon.blender import preview_scene
+        from torch_models.render.preview_scene import PreviewScene
+        from support import blender_preview_scene
         bpy.ops.wm.read_factory_settings(use_empty=True)
         scene = bpy.context.scene
-        preview_scene.setup(scene, PreviewScene(resolution=48, probe_rotation_deg=30.0), Path({str(PROBE)!r}),
-                            None, samples=32, with_ball=False)
-        preview_scene.render_exr(scene, Path({str(tmp_path / 'bg.exr')!r}))
+        blender_preview_scene.setup(scene, PreviewScene(resolution=48, probe_rotation_deg=30.0), Path({str(PROBE)!r}),
+                                    None, samples=32, with_ball=False)
+        blender_preview_scene.render_exr(scene, Path({str(tmp_path / 'bg.exr')!r}))
     """)
     cycles = read_exr(tmp_path / "bg.exr")[..., :3]
     rotated = EnvMap(env.rgb.numpy(), rotation_deg=30.0)
@@ -134,18 +134,18 @@ def test_mesh_ball_renders_like_the_point_ball(blender_run, tmp_path: Path) -> N
     vertices = blender_run(f"""
         import bpy
         from pathlib import Path
-        from richmat_addon.core.preview import PreviewScene
-        from richmat_addon.blender import preview_scene
+        from torch_models.render.preview_scene import PreviewScene
+        from support import blender_preview_scene
         bpy.ops.wm.read_factory_settings(use_empty=True)
         scene = bpy.context.scene
         material = bpy.data.materials.new("plain")
-        preview_scene.setup(scene, PreviewScene(resolution=48), Path({str(PROBE)!r}), material, samples=32)
-        ball = bpy.data.objects[preview_scene.BALL]
+        blender_preview_scene.setup(scene, PreviewScene(resolution=48), Path({str(PROBE)!r}), material, samples=32)
+        ball = bpy.data.objects[blender_preview_scene.BALL]
         vertices = []
         for on in (False, True):
-            preview_scene.use_mesh_ball(on)
+            blender_preview_scene.use_mesh_ball(on)
             vertices.append(len(ball.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.vertices))
-            preview_scene.render_exr(scene, Path({str(tmp_path)!r}) / f"ball_{{on}}.exr")
+            blender_preview_scene.render_exr(scene, Path({str(tmp_path)!r}) / f"ball_{{on}}.exr")
         print("RESULT", vertices)
     """)
     assert vertices[0] == 0 and vertices[1] > 10_000  # a point, then the fine UV sphere
@@ -190,15 +190,16 @@ def test_ball_agrees_with_cycles(blender_run, tmp_path: Path, env: EnvMap) -> No
         import bpy, json
         from pathlib import Path
         from support.agreement_cases import Case
-        from richmat_addon.core.preview import PreviewScene
-        from richmat_addon.blender import cycles_builder, preview_scene
+        from torch_models.render.preview_scene import PreviewScene
+        from richmat_addon.blender import cycles_builder
+        from support import blender_preview_scene
         case = Case(**json.loads({json.dumps(asdict(case))!r}))
         bpy.ops.wm.read_factory_settings(use_empty=True)
         scene = bpy.context.scene
         cycles_builder.enable_osl(scene)
         mat = cycles_builder.build_material(case.material(), {{}}, case.name, node=case.graph_node())
-        preview_scene.setup(scene, PreviewScene(resolution=48), Path({str(PROBE)!r}), mat, 128)
-        preview_scene.render_exr(scene, Path({str(tmp_path / 'ball.exr')!r}))
+        blender_preview_scene.setup(scene, PreviewScene(resolution=48), Path({str(PROBE)!r}), mat, 128)
+        blender_preview_scene.render_exr(scene, Path({str(tmp_path / 'ball.exr')!r}))
     """)
     params = {k: torch.tensor([v]) for k, v in case.params.items()}
     bsdf = LayeredBsdf(params, torch.tensor([case.base_color]))

@@ -8,11 +8,11 @@ import pytest
 
 from richmat_addon.core.enhance import auto_touch, baseline, enhance, resolve_type
 from richmat_addon.core.enhancement_types import TYPES
-from richmat_addon.core.gltf_container import load_gltf
-from richmat_addon.core.gltf_materials import read_materials
-from richmat_addon.core.gltf_mesh import read_geometry
 from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.uv_raster import rasterize
+from torch_models.assets.gltf_container import load_gltf
+from torch_models.assets.gltf_materials import read_materials
+from torch_models.assets.gltf_mesh import read_geometry
 from torch_models.cli_enhance import pil_decode
 from torch_models.material_albedo import luminance, mean_albedo, texel_uvs
 

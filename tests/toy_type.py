@@ -84,7 +84,7 @@ def _farm(settings: dict, folder: Path) -> dict:
     from batch import pipeline, publish
     from batch.assets import Asset, asset_id
     from batch.options import build_parser, settings_of
-    from richmat_addon.core.enhancement_plan import material_type
+    from torch_models.assets.enhancement_plan import material_type
 
     (folder / "in").mkdir()
     (folder / "decoder").mkdir()

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Sequence
 
 from richmat_addon.core.folder_io import FormatError, atomic_path  # noqa: F401  (atomic_path: for the commands)
-from richmat_addon.core.gltf_container import GltfError
+from .assets.gltf_container import GltfError
 
 PROG = "python -m torch_models"
 

@@ -1,7 +1,7 @@
 """Uplift the built-in material to every type, fit each as a neural material, generate from prompts.
 
 The built-in input is procedural (chipped red paint over steel on a UV sphere,
-see richmat_addon/core/builtin.py), so the demo needs nothing beside the clone.
+see torch_models/demo_material.py), so the demo needs nothing beside the clone.
 Writes OUT/type_<k>/ (parameter maps as EXR, params.json, material.mtlx) for
 Types 0-5, and OUT/side_by_side.png: the original PBR material and Types 0-5
 rendered on a ball under the shipped probe with the torch renderer. Then the
@@ -73,11 +73,11 @@ def apply_sizes(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from richmat_addon.core import material_folder
-    from richmat_addon.core.builtin import chipped_paint, sphere_texel_geometry
     from richmat_addon.core.enhance import baseline, enhance
     from richmat_addon.core.enhancement_types import TYPES
 
     from .cli import InputError
+    from .demo_material import chipped_paint, sphere_texel_geometry
     from .demo_render import analytic_at, captioned_row, render_balls, save_sheet, to_u8
 
     from .neural import trained

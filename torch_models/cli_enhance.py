@@ -22,12 +22,12 @@ from tqdm import tqdm
 from richmat_addon.core import material_folder
 from richmat_addon.core.enhance import enhance, resolve_type
 from richmat_addon.core.enhancement_types import DIELECTRIC_ONLY, DUST_TYPES, TYPES, index_ranges
-from richmat_addon.core.gltf_container import load_gltf
-from richmat_addon.core.gltf_materials import GltfMaterial, read_materials
-from richmat_addon.core.gltf_mesh import MeshGeometry, read_geometry
 from richmat_addon.core.maps import ParamMap
 from richmat_addon.core.uv_raster import rasterize
 
+from .assets.gltf_container import load_gltf
+from .assets.gltf_materials import GltfMaterial, read_materials
+from .assets.gltf_mesh import MeshGeometry, read_geometry
 from .cli import InputError
 
 HELP = "enhance the materials of a .glb/.gltf asset (textures, params.json, MaterialX)"

@@ -1,6 +1,6 @@
 """A ``batch/render_dataset.py`` output as a torch ``Dataset``, read through its index.
 
-The index (``richmat_addon/core/dataset_index.py``) lists the published assets, so
+The index (``assets/dataset_index.py``) lists the published assets, so
 nothing here walks folders or guesses the layout. An item is a dict: ``record``, the
 asset's index line, plus the kinds of array asked for at construction, read when the
 item is: ``frames`` (V, H, W, C) uint8 beauty frames; ``intrinsics`` the layers of the
@@ -20,9 +20,10 @@ import numpy as np
 from PIL import Image
 from torch.utils.data import Dataset
 
-from richmat_addon.core import dataset_index, neural_folder
-from richmat_addon.core.dataset_index import DatasetIndex
+from richmat_addon.core import neural_folder
 from richmat_addon.core.folder_io import read_exr
+from .assets import dataset_index
+from .assets.dataset_index import DatasetIndex
 
 
 def read_passes(exr: Path) -> dict[str, np.ndarray]:

@@ -7,14 +7,14 @@ from typing import Callable
 import numpy as np
 import torch
 
-from richmat_addon.core.builtin import sphere_uv
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
-from richmat_addon.core.preview import PreviewScene
 
 from .brdf.model import LayeredBsdf
+from .demo_material import sphere_uv
 from .neural.bsdf import NeuralBsdf
 from .neural.model import NeuralModel
 from .render.ball import BsdfAt
+from .render.preview_scene import PreviewScene
 
 CAPTION_FONT_SIZE = 14  # px: readable on a 160 px panel, where a Type's name wraps to two lines
 CAPTION_PAD = 4

@@ -62,9 +62,9 @@ from mathutils import Vector
 from bl_ext.user_default.richmat.blender import uplift
 from bl_ext.user_default.richmat.blender.cycles_builder import enable_osl
 from bl_ext.user_default.richmat.core import neural_folder
-# The preview scene's setup is not part of the extension (no operator uses it): from the repository.
-from richmat_addon.blender import preview_scene
-from richmat_addon.core.preview import PreviewScene
+# The preview scene's setup is not part of the extension (no operator uses it): from support/.
+from support import blender_preview_scene
+from torch_models.render.preview_scene import PreviewScene
 
 OUT, RENDERS = Path(OUT), Path(RENDERS)
 RENDERS.mkdir(parents=True, exist_ok=True)
@@ -87,7 +87,7 @@ def frame_camera():
     The preview scene's settings are unbiased and noisy at few samples; these
     renders only show each step, so they are denoised (OpenImageDenoise).
     """
-    preview_scene.setup(scene, PreviewScene(resolution=SIZE), Path(PROBE), None, SAMPLES, with_ball=False)
+    blender_preview_scene.setup(scene, PreviewScene(resolution=SIZE), Path(PROBE), None, SAMPLES, with_ball=False)
     enable_osl(scene)  # before Uplift, so the enhanced materials render with their OSL graph
     scene.cycles.use_denoising, scene.cycles.denoiser = True, "OPENIMAGEDENOISE"
     corners = [o.matrix_world @ Vector(c) for o in meshes() for c in o.bound_box]

@@ -54,14 +54,14 @@ PREVIEW_SHADER_FILES = ("neural_osl.py", "schema.py", "tensor_file.py")
 CYCLES = """
 import json, sys, time, numpy as np
 from pathlib import Path
-from richmat_addon.blender import preview_scene
+from support import blender_preview_scene
 from support.neural_ball import neural_ball, read_exr, set_material
 job = json.loads(Path(sys.argv[1]).read_text())
 scene, node = neural_ball(Path(job["shader"]).read_text(), Path(job["probe"]), job["resolution"], job["spp"])
 if "probe" in node.inputs:
     node.inputs["probe"].default_value = job["probe"]
 if job["sun"] is not None:
-    preview_scene.add_sun(scene, *job["sun"])
+    blender_preview_scene.add_sun(scene, *job["sun"])
 seconds = {}
 for case in job["cases"]:
     set_material(node, case["z"], case["base"])
@@ -69,7 +69,7 @@ for case in job["cases"]:
         scene.cycles.seed = seed
         path = Path(job["out"]) / f"{case['name']}_{seed}.exr"
         start = time.perf_counter()
-        preview_scene.render_exr(scene, path)
+        blender_preview_scene.render_exr(scene, path)
         seconds[f"{case['name']}_{seed}"] = time.perf_counter() - start
         np.save(path.with_suffix(".npy"), read_exr(path)[..., :3])
 (Path(job["out"]) / "seconds.json").write_text(json.dumps(seconds))

@@ -44,7 +44,7 @@ TARGET = 0.05
 CYCLES = """
 import json, sys, time, numpy as np
 from pathlib import Path
-from richmat_addon.blender import preview_scene
+from support import blender_preview_scene
 from richmat_addon.core.neural_osl import neural_osl_source
 from richmat_addon.core.tensor_file import read_safetensors
 from support.neural_ball import neural_ball, read_exr, set_material
@@ -59,7 +59,7 @@ for case in job["cases"]:
     set_material(node, case["z"], case["base"])
     path = Path(job["out"]) / (case["name"] + ".exr")
     start = time.perf_counter()
-    preview_scene.render_exr(scene, path)
+    blender_preview_scene.render_exr(scene, path)
     seconds[case["name"]] = time.perf_counter() - start
     np.save(path.with_suffix(".npy"), read_exr(path)[..., :3])
 (Path(job["out"]) / "seconds.json").write_text(json.dumps(seconds))

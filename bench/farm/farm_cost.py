@@ -59,7 +59,6 @@ from bench.common import (FLIP_CONVENTION, REPO, add_out_argument, child_env, pr
                           write_report)
 from bench.neural.dedupe import CROP, crop_rows, flat_patch, texel_colours
 from bench.farm.render_speed import beauty_frames, mean_flip
-from richmat_addon.core.stage_clock import StageClock
 from richmat_addon.core.texel_vectors import QUANT, read_vectors, texel_matrix
 from torch_models.brdf.model import LayeredBsdf, params_from_vectors
 from torch_models.neural import trained
@@ -68,6 +67,7 @@ from torch_models.neural.bsdf import NeuralBsdf
 from torch_models.neural.evaluate import DEFAULT_PROBE, compare
 from torch_models.neural.fit.latents import fit_latents
 from torch_models.render.envmap import EnvMap
+from torch_models.stage_clock import StageClock
 
 MODELS = REPO.parent / "shared" / "assets" / "models"
 ASSETS = ("WaterBottle", "CesiumMilkTruck", "FlightHelmet")

@@ -79,7 +79,7 @@ def farm_prepare(asset: Path, folder: Path, max_texture: int) -> None:
     at the farm's type for the asset (seed 0) into ``folder``/materials, ``scene.blend`` and ``asset.json``."""
     from batch.assets import asset_id
     from batch.pipeline import default_commands
-    from richmat_addon.core.enhancement_plan import asset_type
+    from torch_models.assets.enhancement_plan import asset_type
 
     aid = asset_id(asset.name)
     _run(default_commands(None, None).blender_job(

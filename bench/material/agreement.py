@@ -26,11 +26,11 @@ import torch
 from support.agreement_cases import Case, cases
 from bench.common import FLIP_CONVENTION, REPO, REPORTS, contact_sheet, pyplot, run_python, save_chart, write_report
 from richmat_addon.core.folder_io import read_exr
-from richmat_addon.core.preview import PreviewScene
 from torch_models.brdf.model import LayeredBsdf
 from torch_models.render.ball import render_ball
 from torch_models.render.envmap import EnvMap, read_probe
 from torch_models.render.flip import flip_map
+from torch_models.render.preview_scene import PreviewScene
 from torch_models.render.tonemap import agx
 
 DEFAULT_PROBE = REPO / "torch_models" / "data" / "studio_small_03_512.hdr"

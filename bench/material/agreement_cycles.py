@@ -20,8 +20,9 @@ import bpy
 
 from support.agreement_cases import Case
 from support.osl_script import script_material
-from richmat_addon.blender import cycles_builder, preview_scene
-from richmat_addon.core.preview import PreviewScene
+from richmat_addon.blender import cycles_builder
+from support import blender_preview_scene
+from torch_models.render.preview_scene import PreviewScene
 
 
 def main(job_path: Path) -> None:
@@ -38,12 +39,12 @@ def main(job_path: Path) -> None:
             material = script_material(case.name, Path(job["osl"][case.name]).read_text())
         else:
             material = cycles_builder.build_material(case.material(), {}, case.name, node=case.graph_node())
-        preview_scene.setup(scene, PreviewScene(resolution=job["resolution"]), Path(job["probe"]),
-                            material, job["samples"], job["seed"])
+        blender_preview_scene.setup(scene, PreviewScene(resolution=job["resolution"]), Path(job["probe"]),
+                                    material, job["samples"], job["seed"])
         if job.get("threads"):
             scene.render.threads_mode, scene.render.threads = "FIXED", job["threads"]
         start, start_cpu = time.perf_counter(), time.process_time()
-        preview_scene.render_exr(scene, out / f"{case.name}.exr")
+        blender_preview_scene.render_exr(scene, out / f"{case.name}.exr")
         times[case.name] = time.perf_counter() - start
         cpu[case.name] = time.process_time() - start_cpu
         print(f"cycles {case.name}: {times[case.name]:.1f} s", flush=True)

@@ -40,7 +40,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from support.agreement_cases import Case
-from richmat_addon.core.preview import PreviewScene
+from torch_models.render.preview_scene import PreviewScene
 
 if TYPE_CHECKING:
     import bpy
@@ -55,11 +55,11 @@ def use(scene: bpy.types.Scene, config: dict, samples: int) -> list[str]:
     """Set the scene up for ``config``; the names of the devices it renders on, none when they are missing."""
     import bpy
 
-    from richmat_addon.blender import preview_scene
+    from support import blender_preview_scene
 
     scene.render.engine = config["engine"]
-    if preview_scene.BALL in bpy.data.node_groups:
-        preview_scene.use_mesh_ball(config["engine"] != "CYCLES")
+    if blender_preview_scene.BALL in bpy.data.node_groups:
+        blender_preview_scene.use_mesh_ball(config["engine"] != "CYCLES")
     samples = config.get("samples", samples)
     if config["engine"] != "CYCLES":
         scene.eevee.taa_render_samples = samples
@@ -123,7 +123,8 @@ def read_json(path: Path) -> dict:
 def main(job_path: Path) -> None:
     import bpy
 
-    from richmat_addon.blender import cycles_builder, preview_scene
+    from richmat_addon.blender import cycles_builder
+    from support import blender_preview_scene
     from richmat_addon.blender.osl_env import prefer_blender_bundled_modules
 
     prefer_blender_bundled_modules()
@@ -136,8 +137,8 @@ def main(job_path: Path) -> None:
     else:
         bpy.ops.wm.open_mainfile(filepath=str(asset / "scene.blend"), load_ui=False, use_scripts=False)
     scene = bpy.context.scene
-    preview_scene.setup(scene, PreviewScene(resolution=job["resolution"]), Path(job["probe"]), None,
-                        job["samples"], job["seed"], with_ball=asset is None)
+    blender_preview_scene.setup(scene, PreviewScene(resolution=job["resolution"]), Path(job["probe"]), None,
+                                job["samples"], job["seed"], with_ball=asset is None)
     scene.render.film_transparent = True  # the alpha says which pixels are the ball's or the asset's
     if asset is not None:
         use_asset(scene, asset)  # before the frame range: the farm's camera sets its own
@@ -165,7 +166,8 @@ def main(job_path: Path) -> None:
     devices: dict[str, list[str]] = read_json(out / "devices.json")
     for name, material in materials:
         if material is not None:
-            bpy.data.node_groups[preview_scene.BALL].nodes["Set Material"].inputs["Material"].default_value = material
+            ball = bpy.data.node_groups[blender_preview_scene.BALL]
+            ball.nodes["Set Material"].inputs["Material"].default_value = material
         for config in configs:
             devices[config["label"]] = use(scene, config, job["samples"])
             if not devices[config["label"]]:

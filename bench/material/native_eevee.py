@@ -64,7 +64,7 @@ LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 ASSET = "asset"  # the renders folder of the textured asset
 SWEEP = "settings"  # the renders folder of the settings sweep
 PREVIEW = "preview scene (sun_threshold 0, Blender's defaults otherwise)"  # the sweep's baseline
-# EEVEE's settings tried against the preview scene's (richmat_addon/blender/preview_scene.py), each alone:
+# EEVEE's settings tried against the preview scene's (support/blender_preview_scene.py), each alone:
 # scene properties by dotted path. Screen-space rays reach the diffuse only up to trace_max_roughness.
 SETTINGS = {
     "clamp_surface_indirect 0 (no clamp; default 10)": {"eevee.clamp_surface_indirect": 0.0},

@@ -20,7 +20,6 @@ import torch
 
 from bench.common import add_out_argument, provenance, pyplot, save_chart
 from bench.neural.neural_failure_modes import enhanced_vector, view_cosines
-from richmat_addon.core.preview import PreviewScene
 from richmat_addon.core.schema import CHANNEL_SLICES
 from torch_models.neural import trained
 from torch_models.neural.bsdf import NeuralBsdf
@@ -29,6 +28,7 @@ from torch_models.neural.evaluate import BallSetup
 from torch_models.neural.fit.latents import fit_latents
 from torch_models.neural.glints import GlintPattern, Glints
 from torch_models.render.ball import render_ball
+from torch_models.render.preview_scene import PreviewScene
 from torch_models.render.tonemap import agx
 
 BASE_COLOR = np.array([0.95, 0.72, 0.45], np.float32)  # a warm metal (copper-gold)

@@ -44,7 +44,6 @@ from bench.common import (FLIP_CONVENTION, TARGET_WORST, add_out_argument, add_w
                           target_lines, weights_folders, write_report)
 from richmat_addon.core.enhance import enhance
 from richmat_addon.core.maps import ParamMap, PbrInputs
-from richmat_addon.core.preview import PreviewScene
 from richmat_addon.core.schema import CHANNEL_SLICES
 from torch_models.brdf.model import LayeredBsdf, luminance, params_from_vectors
 from torch_models.neural import trained
@@ -54,6 +53,7 @@ from torch_models.neural.evaluate import BallSetup, Comparison, compare, render_
 from torch_models.neural.fit.latents import fit_latents
 from torch_models.neural.model import NeuralModel
 from torch_models.render.camera import hit_sphere, primary_rays
+from torch_models.render.preview_scene import PreviewScene
 
 FULL = {"roughness": (0.02, 0.05, 0.1, 0.2, 0.4, 0.7, 1.0), "metalness": (0.0, 0.25, 0.4, 0.5, 0.6, 0.75, 1.0),
         "ior": (1.3, 1.4, 1.5, 1.6, 1.7, 1.8)}

@@ -2,7 +2,7 @@
 
 Core (no bpy, no torch): the add-on, the torch backend and the farm scripts write
 and read the same folders through ``material_folder`` and ``neural_folder``, which
-build on this (as does ``dataset_index``, the index of a farm output). OpenImageIO is
+build on this (as does ``torch_models.assets.dataset_index``, the index of a farm output). OpenImageIO is
 imported inside the functions, so inside Blender its bundled copy serves (the add-on
 makes sure that copy comes first). Every write goes to a temporary file that replaces
 the target only when complete.

@@ -24,7 +24,9 @@ from pathlib import Path
 BUNDLED = frozenset({"numpy", "requests", "idna", "charset_normalizer", "urllib3", "certifi", "zstandard",
                      "cython", "Cython", "pyximport", "MaterialX", "OpenImageIO", "PyOpenColorIO", "oslquery",
                      "openvdb", "pxr"})
-PROJECT = frozenset({"richmat_addon", "batch"})  # the Blender side of this repository; torch_models is not
+# The Blender side of this repository: the add-on, the farm, and the torch-free formats and clock of torch_models
+# (assets/, stage_clock.py) the farm imports; torch itself is refused, so a torch import on that side is caught.
+PROJECT = frozenset({"richmat_addon", "batch", "torch_models"})
 ALLOWED = BUNDLED | PROJECT | frozenset(sys.stdlib_module_names) | {"sitecustomize"}
 
 

@@ -37,8 +37,8 @@ from torch import Tensor
 
 from richmat_addon.core.captions import caption
 from richmat_addon.core.enhance import enhance, is_metallic
-from richmat_addon.core.enhancement_plan import asset_type, material_type
 from richmat_addon.core.maps import EnhancedMaterial, ParamMap
+from ..assets.enhancement_plan import asset_type, material_type
 from ..dataset import BatchDataset
 from . import procedural, text
 from .encoding import latent_texture

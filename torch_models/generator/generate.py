@@ -16,8 +16,8 @@ from torch import Tensor
 from richmat_addon.core.enhancement_types import METAL_REMAP
 from richmat_addon.core.maps import PbrInputs, ParamMap
 from richmat_addon.core.prompt import read_prompt
-from richmat_addon.core.stage_clock import StageClock
 from richmat_addon.core.uv_raster import UvRaster, rasterize as uv_rasterize
+from ..stage_clock import StageClock
 from . import DEFAULT_SAMPLES, DEFAULT_STEPS, DEFAULT_TEXTURE_SIZE, DEFAULT_VIEWS, guidance_for, text
 from .coverage import TextureSpace, choose_cameras
 from .dit import TYPE_EMBEDDING, Conditions, LatentGenerator

@@ -1,8 +1,8 @@
 """A user's mesh file as the generator needs it: Z up, in the unit cube, every material with its own
 UVs and maps (base colour, and roughness and metalness where the file has them).
 
-glTF/GLB goes through the add-on's readers (``core.gltf_container``, ``core.gltf_materials``,
-``core.gltf_mesh``): per material, base colour = factor x sRGB->linear(texture), roughness and metalness = factors x the
+glTF/GLB goes through the farm's readers (``assets.gltf_container``, ``assets.gltf_materials``, ``assets.gltf_mesh``):
+per material, base colour = factor x sRGB->linear(texture), roughness and metalness = factors x the
 metallicRoughness texture's G and B (glTF 2.0 3.9.2); the triangles of every primitive placed by
 the node hierarchy in Blender's Z-up frame (as batch imports them), with the UV set the material's
 textures use and its KHR_texture_transform applied, so that a face's UVs address its material's
@@ -29,12 +29,12 @@ import torch
 
 from richmat_addon.core.colour import srgb_to_linear
 from richmat_addon.core.enhance import METALLIC_THRESHOLD
-from richmat_addon.core.gltf_container import read_uri
-from richmat_addon.core.gltf_materials import TextureTransform
 from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.prompt import Reading, base_over, keeps_base
 from richmat_addon.core.uv_raster import MAX_UV_OVERLAP, rasterize as uv_rasterize, uv_area
 
+from ..assets.gltf_container import read_uri
+from ..assets.gltf_materials import TextureTransform
 from .views import Mesh, sample_texture
 
 MIN_TEXTURE = 8  # smallest latent texture side
@@ -159,9 +159,9 @@ def load_mesh(path: Path) -> MeshInput:
 
 
 def _gltf_parts(path: Path) -> tuple[list[_Part], list[str]]:
-    from richmat_addon.core.gltf_container import load_gltf
-    from richmat_addon.core.gltf_materials import read_materials
-    from richmat_addon.core.gltf_mesh import read_geometry
+    from ..assets.gltf_container import load_gltf
+    from ..assets.gltf_materials import read_materials
+    from ..assets.gltf_mesh import read_geometry
 
     from ..cli_enhance import pil_decode
 

@@ -16,11 +16,11 @@ import torch
 from tqdm import tqdm
 from torch import Tensor
 
-from richmat_addon.core.preview import PreviewScene
 from ..brdf.model import LayeredBsdf, params_from_vectors
 from ..render.ball import Sun, render_ball
 from ..render.envmap import EnvMap
 from ..render.flip import flip_map
+from ..render.preview_scene import PreviewScene
 from ..render.tonemap import agx
 from .bsdf import NeuralBsdf
 from .quadrature import VIEW_COSINES, half_vector_nodes

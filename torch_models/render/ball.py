@@ -19,10 +19,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from richmat_addon.core.preview import PreviewScene
-
 from .camera import hit_sphere, primary_rays
 from .envmap import EnvMap
+from .preview_scene import PreviewScene
 
 
 class Bsdf(Protocol):

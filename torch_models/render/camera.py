@@ -13,7 +13,7 @@ import math
 import torch
 from torch import Tensor
 
-from richmat_addon.core.preview import PreviewScene
+from .preview_scene import PreviewScene
 
 FILTER_WIDTH = 3.0  # span of the window Cycles samples for its default width of 1.5 px
 _TABLE_SIZE = 1024

@@ -21,9 +21,9 @@ import numpy as np
 import torch
 from safetensors.torch import load_file, save_file
 
-from richmat_addon.core.stage_clock import StageClock
 from richmat_addon.core.texel_vectors import FIT_BUDGET, QUANT, TexelVectors, read_vectors
 
+from ...stage_clock import StageClock
 from .. import energy
 from ..mlp.energy import REFIT_STEPS
 from ..model import NeuralModel

@@ -13,8 +13,8 @@ import torch
 from torch import Tensor
 
 from richmat_addon.core import neural_osl_hybrid
-from richmat_addon.core.stage_clock import StageClock
 
+from ...stage_clock import StageClock
 from ..config import TrainConfig
 from ..data import view_directions
 from ..furnace import BoundedFit, Furnace

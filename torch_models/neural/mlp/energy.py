@@ -11,8 +11,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from richmat_addon.core.stage_clock import StageClock
-
+from ...stage_clock import StageClock
 from ..data import make_batch
 from ..fit.latents import FIT_BATCH, FIT_BUFFER, deterministic, fitting_loss, fitting_pool
 from ..furnace import SCALE_STEP, BoundedFit, furnace

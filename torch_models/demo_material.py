@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .maps import ParamMap, PbrInputs
-from .masks import periodic_noise
+from richmat_addon.core.maps import ParamMap, PbrInputs
+from richmat_addon.core.masks import periodic_noise
 
 
 def chipped_paint(size: int = 256, seed: int = 0) -> PbrInputs:

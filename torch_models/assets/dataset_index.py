@@ -23,8 +23,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable
 
-from . import neural_folder
-from .folder_io import FormatError, atomic_path, check_record
+from richmat_addon.core import neural_folder
+from richmat_addon.core.folder_io import FormatError, atomic_path, check_record
 
 INDEX = "_index.jsonl"
 FORMAT = 1

@@ -1,7 +1,9 @@
 """The preview-ball scene, as data shared by the torch renderer and Cycles.
 
 Both renderers build their camera and sphere from this one description, so an
-agreement test compares materials, not two slightly different cameras.
+agreement test compares materials, not two slightly different cameras. Cycles' copy
+(``support/blender_preview_scene.py``) is built by the tests and benches, inside Blender:
+this module and its package import no torch.
 """
 from __future__ import annotations
 

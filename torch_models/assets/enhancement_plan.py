@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import hashlib
 
-from .enhancement_types import DIELECTRIC_ONLY, METAL_REMAP, TYPE_MIX
+from richmat_addon.core.enhancement_types import DIELECTRIC_ONLY, METAL_REMAP, TYPE_MIX
 
 
 def asset_type(asset_id: str, seed: int) -> int:

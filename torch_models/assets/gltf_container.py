@@ -1,8 +1,8 @@
 """The glTF 2.0 container: a .gltf's JSON or a .glb's chunks, and the buffers and files its URIs name.
 
 Everything that reads a glTF (materials, meshes, the farm's import) starts here, with
-the standard library only, so the add-on in a stock Blender and the torch backend parse
-files the same way. A glTF is untrusted input: every error names the file
+the standard library only, so the farm's import in a stock Blender and the torch backend
+parse files the same way. A glTF is untrusted input: every error names the file
 (``GltfError``), and a URI may only name a regular file inside the asset's folder.
 """
 from __future__ import annotations

@@ -1,8 +1,7 @@
 """glTF 2.0 metal-rough materials as ``PbrInputs``, with numpy and the standard library only.
 
-The same code runs inside Blender (no pip packages there) and in the torch backend,
-so the materials are read here from the parsed file (``gltf_container``), and image
-decoding is injected: Blender passes its own loader, the backend passes PIL. A decoder takes the encoded
+The materials are read from the parsed file (``gltf_container``) without torch, like the
+rest of this package, and image decoding is injected (the backend passes PIL): a decoder takes the encoded
 bytes and the MIME type and returns an ``(H, W)`` or ``(H, W, C)`` array (uint8,
 uint16 or float in [0, 1]).
 
@@ -27,9 +26,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .colour import srgb_to_linear
+from richmat_addon.core.colour import srgb_to_linear
+from richmat_addon.core.maps import ParamMap, PbrInputs
 from .gltf_container import GltfDocument, load_gltf, read_uri
-from .maps import ParamMap, PbrInputs
 
 ImageDecoder = Callable[[bytes, str], np.ndarray]
 

@@ -1,5 +1,7 @@
-"""The preview-ball scene in Cycles, built from ``core.preview.PreviewScene``.
+"""The preview-ball scene in Cycles, built from ``torch_models.render.preview_scene.PreviewScene``.
 
+The tests and benches build it to compare Cycles with the torch renderer and the preview shaders;
+no operator of the add-on does, so it lives here, out of the extension.
 The ball is a single point of a point cloud (Cycles renders points as exact
 spheres), so its silhouette and normals are those of the torch renderer's
 analytic sphere, not of a tessellated mesh. EEVEE draws points as coarse
@@ -14,7 +16,7 @@ from pathlib import Path
 
 import bpy
 
-from ..core.preview import PreviewScene
+from torch_models.render.preview_scene import PreviewScene
 
 BALL = "richmat_preview_ball"
 MESH_SWITCH = "mesh ball"
