@@ -285,17 +285,19 @@ def generate_from_prompts(out: Path, seed: int, texture_size: int, view_size: in
     progress.write(f"generated {len(rows)} materials for the red sphere; wrote {png}")
 
 
-# The stages' costs, as one-thread CPU seconds measured on this machine: the progress line's weights.
+# The stages' costs, the progress line's weights: wall seconds on this 2-core machine with nothing else
+# running, at the default sizes; the stages only a decoder not bounded by construction runs (the
+# furnace, its refit and the guard) as one-thread CPU seconds measured with the MLP kind.
 ENHANCE_SECONDS_PER_TEXEL = 5e-6  # per type, writing its EXRs included
-ANALYTIC_SECONDS_PER_SAMPLE = 8.7e-6  # per pixel and sample of a ball render
-NEURAL_SECONDS_PER_SAMPLE = 3.7e-6
-FIT_TARGET_SECONDS = 5.0  # the analytic targets a fit draws before its first step
+ANALYTIC_SECONDS_PER_SAMPLE = 3.5e-6  # per pixel and sample of a ball render
+NEURAL_SECONDS_PER_SAMPLE = 2.1e-6
+FIT_TARGET_SECONDS = 2.5  # the analytic targets a fit draws before its first step
 FIT_STEP_SECONDS = 0.02
 FURNACE_SECONDS_PER_VECTOR = 0.023
 REFIT_STEP_SECONDS = 1.5  # with REFIT_LATENTS latents failing the furnace (about 40 % of the vectors fail)
-PROMPT_SECONDS = 16.0  # sampling and projection of one prompt
+PROMPT_SECONDS = 4.0  # sampling and projection of one prompt
 GUARD_SECONDS_PER_TEXEL = 0.083  # the energy guard of a generated texel (a decoder not bounded by construction)
-PREVIEW_SECONDS_PER_SAMPLE = 1.8e-6
+PREVIEW_SECONDS_PER_SAMPLE = 1.9e-6
 
 
 def expected_seconds(args: argparse.Namespace, vectors: int = 1000, bounded: bool = True) -> dict[str, float]:
