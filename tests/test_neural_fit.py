@@ -14,11 +14,11 @@ from richmat_addon.core.folder_io import read_exr
 from richmat_addon.core.maps import ParamMap, PbrInputs
 from richmat_addon.core.texel_vectors import normalise, texel_matrix
 from torch_models.cli import main
+from torch_models.demo_material import chipped_paint, sphere_texel_geometry
 from torch_models.neural import energy, furnace, loss, quadrature, trained
 from torch_models.neural.fit import latents, material_vectors
 from torch_models.neural.fit.error import vector_errors
 from tests.test_neural_training import TINY
-from torch_models.demo_material import chipped_paint, sphere_texel_geometry
 
 
 @pytest.fixture(scope="module")

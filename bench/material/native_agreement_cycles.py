@@ -116,6 +116,20 @@ def use_asset(scene: bpy.types.Scene, work: Path) -> None:
     bl_render.orbit(scene, 1, bl_render.start_azimuth(prepared["asset_id"], 0))
 
 
+def ball_materials(job: dict) -> list[tuple[str, bpy.types.Material | None]]:
+    """The job's cases as materials carrying both graphs, and the plain Principled ball where it asks."""
+    import bpy
+
+    from richmat_addon.blender import cycles_builder
+
+    materials: list[tuple[str, bpy.types.Material | None]] = [
+        (c.name, cycles_builder.build_material(c.material(), {}, c.name, node=c.graph_node()))
+        for c in (Case(**spec) for spec in job["cases"])]
+    if job.get("control"):
+        materials.append((CONTROL, bpy.data.materials.new(CONTROL)))
+    return materials
+
+
 def read_json(path: Path) -> dict:
     return json.loads(path.read_text()) if path.exists() else {}
 
@@ -154,20 +168,16 @@ def main(job_path: Path) -> None:
 
     bpy.app.handlers.render_pre.append(stamp)
     bpy.app.handlers.render_post.append(stamp)
-    cases = [Case(**spec) for spec in job["cases"]]
-    materials: list[tuple[str, bpy.types.Material | None]] = [
-        (c.name, cycles_builder.build_material(c.material(), {}, c.name, node=c.graph_node())) for c in cases]
-    if job.get("control"):
-        materials.append((CONTROL, bpy.data.materials.new(CONTROL)))
-    if asset is not None:
-        materials = [(job["name"], None)]  # None: the asset's own materials (use_asset), no ball
+    # None: the asset's own materials (use_asset), on no ball
+    materials = ball_materials(job) if asset is None else [(job["name"], None)]
+    ball = None if asset is not None else \
+        bpy.data.node_groups[blender_preview_scene.BALL].nodes["Set Material"].inputs["Material"]
     # Runs into the same folder add to its records (a GPU machine can give EEVEE and Cycles separate time limits).
     times: dict[str, dict[str, dict[str, list[float]]]] = read_json(out / "times.json")
     devices: dict[str, list[str]] = read_json(out / "devices.json")
     for name, material in materials:
-        if material is not None:
-            ball = bpy.data.node_groups[blender_preview_scene.BALL]
-            ball.nodes["Set Material"].inputs["Material"].default_value = material
+        if ball is not None:
+            ball.default_value = material
         for config in configs:
             devices[config["label"]] = use(scene, config, job["samples"])
             if not devices[config["label"]]:

@@ -48,6 +48,7 @@ from bench.material.native_agreement import DEFAULT_PROBE, group_of, labelled_sh
 from bench.material.native_agreement_cycles import CONTROL, CPU_CONFIGS, read_json
 from bench.material.native_gpu import GPU_CONFIGS
 from bench.farm.render_speed import farm_prepare
+from richmat_addon.core.colour import LUMINANCE
 from richmat_addon.core.folder_io import read_exr
 from support.agreement_cases import Case, cases
 from support.paths import SHARED_ASSETS
@@ -60,7 +61,6 @@ FRAMES = 2  # EEVEE's second frame checks that it is deterministic; the first on
 CYCLES = CPU_CONFIGS[1]  # Cycles on the CPU, native graph (SVM)
 CYCLES_FORM = "eevee_cycles_form"  # EEVEE reading the native graph's form for Cycles, where EEVEE has its own
 REFERENCE = "Principled BSDF"  # the control ball's group: Blender's default material in both engines
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 ASSET = "asset"  # the renders folder of the textured asset
 SWEEP = "settings"  # the renders folder of the settings sweep
 PREVIEW = "preview scene (sun_threshold 0, Blender's defaults otherwise)"  # the sweep's baseline
